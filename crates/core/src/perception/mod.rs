@@ -79,12 +79,17 @@ pub struct Detection {
     pub status: RowStatus,
     /// Row spacing estimated online, m (crop-agnostic: never configured), when known.
     pub row_spacing_m: Option<f64>,
+    /// Distance along the rows from `base_link` to where the canopy ends, m, once that end is in view
+    /// (negative once the robot has passed it). Lane switching uses it to clear the row end.
+    pub row_end_ahead_m: Option<f64>,
 }
 
 impl Detection {
-    /// A detection with no rows and the given status.
+    /// A detection with no rows and the given status. Build richer ones with struct update syntax,
+    /// `Detection { left: Some(row), ..Detection::empty(t, RowStatus::Tracking) }`, so that fields added
+    /// later do not break callers.
     pub fn empty(stamp_s: f64, status: RowStatus) -> Self {
-        Self { stamp_s, left: None, right: None, status, row_spacing_m: None }
+        Self { stamp_s, left: None, right: None, status, row_spacing_m: None, row_end_ahead_m: None }
     }
 }
 
