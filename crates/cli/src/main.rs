@@ -2,6 +2,7 @@
 //! algorithm lives in the library crates (`croprow-core`, `croprow-sim`, `croprow-io`).
 
 mod cmd;
+mod plot;
 
 use clap::{Parser, Subcommand};
 
