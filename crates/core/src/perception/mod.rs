@@ -6,6 +6,12 @@
 
 use serde::{Deserialize, Serialize};
 
+mod config;
+mod detector;
+
+pub use config::{DetectorConfig, DetectorMode};
+pub use detector::RowDetector;
+
 use crate::geometry::Point3;
 
 /// One LiDAR revolution, borrowed: points in the sensor frame (m) and the stamp of the scan (s).
