@@ -84,6 +84,9 @@ pub struct DetectorConfig {
     pub max_speed_mps: f64,
     /// Largest plausible gap between two scans, s; a longer gap resets the map. Default 2.
     pub max_gap_s: f64,
+    /// Default mode: the canopy plane is never lower than this above the ground level (5th height
+    /// percentile), m, so that weeds (1-8 cm) and ground noise stay out. Default 0.12.
+    pub min_plant_height_m: f64,
     /// Default mode: smallest row spacing searched, m. Default 0.3.
     pub spacing_min_m: f64,
     /// Default mode: largest row spacing searched, m. Default 1.5.
@@ -131,6 +134,7 @@ impl Default for DetectorConfig {
             lost_after_s: 1.0,
             max_speed_mps: 5.0,
             max_gap_s: 2.0,
+            min_plant_height_m: 0.12,
             spacing_min_m: 0.3,
             spacing_max_m: 1.5,
             heading_search_deg: 20.0,
@@ -177,6 +181,7 @@ impl DetectorConfig {
         check_range("detector.lost_after_s", self.lost_after_s, 0.01, 3600.0)?;
         check_range("detector.max_speed_mps", self.max_speed_mps, 0.1, 100.0)?;
         check_range("detector.max_gap_s", self.max_gap_s, 0.01, 3600.0)?;
+        check_range("detector.min_plant_height_m", self.min_plant_height_m, 0.0, 2.0)?;
         check_range("detector.spacing_min_m", self.spacing_min_m, 0.1, 5.0)?;
         check_range("detector.spacing_max_m", self.spacing_max_m, self.spacing_min_m + 0.05, 5.0)?;
         check_range("detector.heading_search_deg", self.heading_search_deg, 0.0, 45.0)?;

@@ -8,6 +8,11 @@ use serde::{Deserialize, Serialize};
 
 mod config;
 mod detector;
+mod lanes;
+mod map;
+mod paper;
+mod preprocess;
+mod rng;
 
 pub use config::{DetectorConfig, DetectorMode};
 pub use detector::RowDetector;
