@@ -527,7 +527,8 @@ struct State {
     clouds_seen: usize,
     /// A fault met while scans were still waiting; reported after them.
     error: Option<RecordingError>,
-    reported_missing: bool,
+    /// The replay has ended (its fault, if any, was reported).
+    finished: bool,
     /// Frame id of the scan last released.
     current_frame: String,
 }
@@ -544,7 +545,7 @@ impl State {
             pool: Vec::new(),
             clouds_seen: 0,
             error: None,
-            reported_missing: false,
+            finished: false,
             current_frame: String::new(),
         }
     }
@@ -694,6 +695,9 @@ impl Replay {
     /// The next scan, or the fault that ends the replay (after which it returns `None`). The frame
     /// borrows the replay's buffers: its points are valid until the next call, which reuses them.
     pub fn next_scan(&mut self) -> Option<Result<ScanFrame<'_>, RecordingError>> {
+        if self.state.finished {
+            return None;
+        }
         let mut fault = None;
         while let Some(source) = self.source.as_mut() {
             if self.state.front_ready(false) {
@@ -711,11 +715,11 @@ impl Replay {
         let at_end = self.source.is_none();
         if !self.state.front_ready(at_end) {
             // Nothing left to release: report the fault, or a cloud topic that never appeared.
+            self.state.finished = true;
             if let Some(e) = fault.or_else(|| self.state.error.take()) {
                 return Some(Err(e));
             }
-            if self.state.clouds_seen == 0 && !self.state.reported_missing {
-                self.state.reported_missing = true;
+            if self.state.clouds_seen == 0 {
                 return Some(Err(missing_topic(
                     &self.state.config.cloud_topic,
                     self.state.channels.values(),
@@ -737,6 +741,7 @@ impl Replay {
             Err(e) => {
                 self.source = None;
                 self.state.pending.clear();
+                self.state.finished = true;
                 return Some(Err(e));
             }
         };

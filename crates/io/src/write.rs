@@ -88,12 +88,19 @@ impl RecordingWriter<BufWriter<File>> {
 }
 
 impl<W: Write + Seek> RecordingWriter<W> {
-    /// Starts a recording on any seekable writer.
+    /// Starts a recording on any seekable writer (chunks of about 1 MiB, like rosbag2).
     pub fn new(w: W) -> Result<Self, WriteError> {
+        Self::with_chunk_size(w, 1 << 20)
+    }
+
+    /// Starts a recording whose chunks close after about `chunk_bytes` (uncompressed): smaller chunks
+    /// lose less to a crash mid-write.
+    pub fn with_chunk_size(w: W, chunk_bytes: u64) -> Result<Self, WriteError> {
         let writer = mcap::WriteOptions::new()
             .profile("ros2")
             .library(concat!("croprow-io ", env!("CARGO_PKG_VERSION")))
             .compression(Some(mcap::Compression::Zstd))
+            .chunk_size(Some(chunk_bytes))
             .create(w)?;
         Ok(Self { writer, channels: HashMap::new(), schemas: HashMap::new(), buf: Vec::new() })
     }
@@ -277,6 +284,27 @@ impl<W: Write + Seek> RecordingWriter<W> {
             },
         ];
         self.write(topic, stamp_s, &MarkerArray { markers })
+    }
+
+    /// An IMU sample: angular velocity (rad/s) and linear acceleration (m/s²) in `frame_id`, no
+    /// orientation (covariance element 0 = -1, as REP-145 says for "not provided").
+    pub fn write_imu(
+        &mut self,
+        topic: &str,
+        stamp_s: f64,
+        frame_id: &str,
+        angular_velocity: [f64; 3],
+        linear_acceleration: [f64; 3],
+    ) -> Result<(), WriteError> {
+        let v = |a: [f64; 3]| Vector3 { x: a[0], y: a[1], z: a[2] };
+        let mut imu = msg::Imu {
+            header: header(stamp_s, frame_id)?,
+            angular_velocity: v(angular_velocity),
+            linear_acceleration: v(linear_acceleration),
+            ..msg::Imu::default()
+        };
+        imu.orientation_covariance[0] = -1.0;
+        self.write(topic, stamp_s, &imu)
     }
 
     /// A path (e.g. the centre-line reference) of planar poses in `frame_id`.

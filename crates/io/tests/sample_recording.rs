@@ -89,3 +89,66 @@ fn yields_23_scans_with_mount_from_tf_static_and_interpolated_odometry() {
     }
     assert_eq!(n, 23);
 }
+
+/// Lateral offset (y at x = 0, base_link) and heading of a world polyline seen from a true pose.
+fn truth_in_base(polyline: &[serde_json::Value], pose: (f64, f64, f64)) -> Option<(f64, f64)> {
+    let (px, py, pyaw) = pose;
+    let (s, c) = pyaw.sin_cos();
+    let local: Vec<(f64, f64)> = polyline
+        .iter()
+        .map(|p| {
+            let (wx, wy) = (p[0].as_f64().unwrap() - px, p[1].as_f64().unwrap() - py);
+            (c * wx + s * wy, -s * wx + c * wy)
+        })
+        .collect();
+    local.windows(2).find(|w| w[0].0 <= 0.0 && w[1].0 > 0.0).map(|w| {
+        let t = -w[0].0 / (w[1].0 - w[0].0);
+        (w[0].1 + t * (w[1].1 - w[0].1), (w[1].1 - w[0].1).atan2(w[1].0 - w[0].0))
+    })
+}
+
+#[test]
+fn detected_rows_match_the_ground_truth() {
+    use croprow_core::{DetectorConfig, RowDetector, RowStatus};
+    let gt = ground_truth();
+    let rows = gt["rows"].as_array().unwrap();
+    let polyline = |key: &str| {
+        let index = gt["followed_rows"][key].as_u64().unwrap();
+        rows.iter().find(|r| r["index"].as_u64() == Some(index)).unwrap()["polyline"]
+            .as_array()
+            .unwrap()
+            .clone()
+    };
+    let (left_row, right_row) = (polyline("left"), polyline("right"));
+    let gt_scans = gt["scans"].as_array().unwrap();
+    let mut detector = RowDetector::new(DetectorConfig::default()).unwrap();
+    let mut replay = Recording::open(sample()).unwrap().replay(&ReplayConfig::default()).unwrap();
+    let (mut n, mut tracked) = (0, 0);
+    while let Some(frame) = replay.next_scan() {
+        let f = frame.unwrap();
+        let d = detector.detect(f.scan(), f.odom_pose.unwrap(), &f.mount);
+        let tp = gt_scans[n]["pose"].as_array().unwrap();
+        let pose = (tp[0].as_f64().unwrap(), tp[1].as_f64().unwrap(), tp[5].as_f64().unwrap());
+        n += 1;
+        if d.status != RowStatus::Tracking {
+            continue;
+        }
+        tracked += 1;
+        for (row, truth_line, side) in [(d.left, &left_row, "left"), (d.right, &right_row, "right")] {
+            let row = row.unwrap_or_else(|| panic!("scan {n}: tracking without a {side} row"));
+            let (offset, heading) = truth_in_base(truth_line, pose).expect("the true row passes the robot");
+            assert!((offset.abs() - 0.375).abs() < 0.1, "truth itself: {side} row at {offset} m");
+            // Tolerances: 0.08 m lateral (a tenth of the 0.75 m spacing), 5° heading.
+            let [x1, y1, x2, y2] = row.line;
+            let y0 = y1 - x1 * (y2 - y1) / (x2 - x1);
+            assert!((y0 - offset).abs() < 0.08, "scan {n} {side}: detected {y0:.3} m, truth {offset:.3} m");
+            let h = (y2 - y1).atan2(x2 - x1);
+            assert!(
+                (h - heading).abs() < 5f64.to_radians(),
+                "scan {n} {side}: heading {h:.3} vs {heading:.3} rad"
+            );
+        }
+    }
+    assert_eq!(n, 23);
+    assert!(tracked >= 20, "only {tracked} of 23 scans tracked");
+}
