@@ -41,6 +41,9 @@ use crate::tf::{LookupError, TransformBuffer};
 
 /// The MCAP magic that opens every file.
 const MAGIC: &[u8; 8] = b"\x89MCAP0\r\n";
+/// Largest record (chunk or message) read, bytes: a corrupt length field must not allocate the
+/// machine away. 256 MiB is far above a 128-ring LiDAR scan (~10 MB).
+const MAX_RECORD_BYTES: usize = 256 << 20;
 /// The static transform topic.
 pub const TF_STATIC: &str = "/tf_static";
 
@@ -367,18 +370,21 @@ impl Recording {
                 if channels.values().any(|c| c.topic == TF_STATIC) {
                     // Static transforms may be published at any time; read them all up front so the
                     // first scans already have their mount.
-                    let opts = IndexedReaderOptions::new().include_topics([TF_STATIC]);
+                    let opts = IndexedReaderOptions::new()
+                        .with_record_length_limit(MAX_RECORD_BYTES)
+                        .include_topics([TF_STATIC]);
                     let reader =
                         IndexedReader::new_with_options(&summary, opts).map_err(|e| state.mcap_error(e))?;
                     let mut source = Source::Indexed { reader, file, buf: Vec::new() };
                     while let Some(step) = source.step(&mut state, true) {
                         step?;
                     }
-                    let Source::Indexed { file: f, .. } = source else { unreachable!() };
-                    file = f;
+                    file = source.into_file();
                 }
                 let topics = [config.cloud_topic.clone(), config.odom_topic.clone()];
-                let opts = IndexedReaderOptions::new().include_topics(topics);
+                let opts = IndexedReaderOptions::new()
+                    .with_record_length_limit(MAX_RECORD_BYTES)
+                    .include_topics(topics);
                 let reader =
                     IndexedReader::new_with_options(&summary, opts).map_err(|e| state.mcap_error(e))?;
                 Source::Indexed { reader, file, buf: Vec::new() }
@@ -387,7 +393,7 @@ impl Recording {
                 reader: LinearReader::new_with_options(
                     LinearReaderOptions::default()
                         .with_validate_chunk_crcs(true)
-                        .with_record_length_limit(1 << 30),
+                        .with_record_length_limit(MAX_RECORD_BYTES),
                 ),
                 file: self.file,
                 schemas: HashMap::new(),
@@ -420,7 +426,9 @@ fn check_schema(channel: &Channel, expected: &'static str) -> Result<(), Recordi
 
 fn read_summary(file: &mut File, len: u64) -> Result<Option<mcap::Summary>, McapError> {
     let mut reader = SummaryReader::new_with_options(
-        mcap::sans_io::summary_reader::SummaryReaderOptions::default().with_file_size(len),
+        mcap::sans_io::summary_reader::SummaryReaderOptions::default()
+            .with_file_size(len)
+            .with_record_length_limit(MAX_RECORD_BYTES),
     );
     while let Some(event) = reader.next_event() {
         match event? {
@@ -444,6 +452,12 @@ enum Source {
 }
 
 impl Source {
+    fn into_file(self) -> BufReader<File> {
+        match self {
+            Source::Indexed { file, .. } | Source::Linear { file, .. } => file,
+        }
+    }
+
     /// Advances by one event; a message is handed to `state`. `None` at the end of the file.
     fn step(&mut self, state: &mut State, tf_only: bool) -> Option<Result<(), RecordingError>> {
         match self {
