@@ -9,6 +9,8 @@
 
 pub mod mpc;
 pub mod path;
+pub mod reference;
 
 pub use mpc::{Mpc, MpcConfig, SolveStatus};
 pub use path::{Frenet, Path};
+pub use reference::{Reference, ReferenceConfig};
