@@ -7,10 +7,12 @@
 //! row end + odometry ──► headland turn (a Path in odom) ──┘
 //! ```
 
+pub mod lane_switch;
 pub mod mpc;
 pub mod path;
 pub mod reference;
 
+pub use lane_switch::{Guidance, LaneSwitchConfig, LaneSwitcher, Mode, StopReason, TurnDirection};
 pub use mpc::{Mpc, MpcConfig, SolveStatus};
 pub use path::{Frenet, Path};
 pub use reference::{Reference, ReferenceConfig};

@@ -35,7 +35,13 @@ pub struct ReferenceConfig {
 
 impl Default for ReferenceConfig {
     fn default() -> Self {
-        Self { fallback_row_spacing_m: 0.75, ahead_m: 10.0, behind_m: 2.0, use_curvature: true, max_curvature_per_m: 0.2 }
+        Self {
+            fallback_row_spacing_m: 0.75,
+            ahead_m: 10.0,
+            behind_m: 2.0,
+            use_curvature: true,
+            max_curvature_per_m: 0.2,
+        }
     }
 }
 
@@ -95,7 +101,12 @@ impl Reference {
             .filter(|s| s.is_finite() && *s > 0.0)
             .unwrap_or(self.cfg.fallback_row_spacing_m);
         let usable = |r: &Option<RowEstimate>| {
-            r.filter(|r| r.offset_m.is_finite() && r.heading_rad.is_finite() && r.curvature_per_m.is_finite() && r.heading_rad.abs() < 1.2)
+            r.filter(|r| {
+                r.offset_m.is_finite()
+                    && r.heading_rad.is_finite()
+                    && r.curvature_per_m.is_finite()
+                    && r.heading_rad.abs() < 1.2
+            })
         };
         let shifted = |r: &RowEstimate, side: f64| {
             // The centre is parallel to the row at half a spacing: its offset at x = 0 grows by 1/cos.
@@ -179,13 +190,23 @@ mod tests {
     use crate::perception::RowStatus;
 
     fn row(offset_m: f64, heading_rad: f64) -> RowEstimate {
-        RowEstimate { line: [0.0, offset_m, 4.0, offset_m], offset_m, heading_rad, curvature_per_m: 0.01, confidence: 1.0 }
+        RowEstimate {
+            line: [0.0, offset_m, 4.0, offset_m],
+            offset_m,
+            heading_rad,
+            curvature_per_m: 0.01,
+            confidence: 1.0,
+        }
     }
 
     #[test]
     fn two_rows_give_the_midline() {
         let r = Reference::new(ReferenceConfig::default()).unwrap();
-        let d = Detection { left: Some(row(0.45, 0.05)), right: Some(row(-0.31, 0.03)), ..Detection::empty(0.0, RowStatus::Tracking) };
+        let d = Detection {
+            left: Some(row(0.45, 0.05)),
+            right: Some(row(-0.31, 0.03)),
+            ..Detection::empty(0.0, RowStatus::Tracking)
+        };
         let c = r.centre_line(&d).unwrap();
         assert!((c.offset_m - 0.07).abs() < 1e-12 && (c.heading_rad - 0.04).abs() < 1e-12);
         assert!((c.curvature_per_m - 0.01).abs() < 1e-12);
@@ -194,7 +215,11 @@ mod tests {
     #[test]
     fn one_row_is_shifted_by_half_the_estimated_spacing() {
         let r = Reference::new(ReferenceConfig::default()).unwrap();
-        let d = Detection { right: Some(row(-0.3, 0.0)), row_spacing_m: Some(0.8), ..Detection::empty(0.0, RowStatus::Tracking) };
+        let d = Detection {
+            right: Some(row(-0.3, 0.0)),
+            row_spacing_m: Some(0.8),
+            ..Detection::empty(0.0, RowStatus::Tracking)
+        };
         assert!((r.centre_line(&d).unwrap().offset_m - 0.1).abs() < 1e-12);
         let d = Detection { left: Some(row(0.3, 0.0)), ..Detection::empty(0.0, RowStatus::Tracking) };
         assert!((r.centre_line(&d).unwrap().offset_m - (0.3 - 0.375)).abs() < 1e-12);
@@ -204,7 +229,11 @@ mod tests {
     fn reference_is_carried_in_odom() {
         let mut r = Reference::new(ReferenceConfig::default()).unwrap();
         let straight = |o| RowEstimate { curvature_per_m: 0.0, ..row(o, 0.0) };
-        let d = Detection { left: Some(straight(0.5)), right: Some(straight(-0.3)), ..Detection::empty(0.0, RowStatus::Tracking) };
+        let d = Detection {
+            left: Some(straight(0.5)),
+            right: Some(straight(-0.3)),
+            ..Detection::empty(0.0, RowStatus::Tracking)
+        };
         let scan_pose = Pose2::new(10.0, 5.0, std::f64::consts::FRAC_PI_2);
         assert!(r.update(&d, &scan_pose));
         // Later the robot has moved 1 m along odom y: the centre line is still 0.1 m to its left (-x).
