@@ -42,6 +42,8 @@ const HIST_HALF_M: f64 = HIST_BIN_M * HIST_BINS as f64 * 0.5;
 const X_LO_M: f64 = -1.0;
 /// Bin centroids count fully from this many points on (weight min(n, W)/W).
 const FULL_WEIGHT_POINTS: f64 = 20.0;
+/// Keeps the height weight of a point right at the plane above zero, m².
+const HEIGHT_WEIGHT_FLOOR_M2: f64 = 1e-4;
 /// Scale of the Cauchy weight on the lateral residual in the second fit pass, m.
 const CAUCHY_M: f64 = 0.05;
 /// Prior weights of the correction, in units of one full-weight centroid: the spacing changes slowly;
@@ -129,6 +131,7 @@ impl Lane {
 #[derive(Debug, Clone, Copy, Default)]
 struct Bin {
     n: u32,
+    w: f64,
     sx: f64,
     sy: f64,
 }
@@ -186,7 +189,7 @@ impl Lanes {
     /// One scan: `canopy` and `cropped` points in `base_link`, `odom` its pose at `t_s`.
     pub(crate) fn step(
         &mut self,
-        canopy: &[[f32; 2]],
+        canopy: &[[f32; 3]],
         cropped: &[[f32; 3]],
         odom: &Pose2,
         t_s: f64,
@@ -231,7 +234,7 @@ impl Lanes {
     }
 
     /// Start-up search for heading, spacing and phase from one scan's canopy.
-    fn search(&mut self, canopy: &[[f32; 2]], config: &DetectorConfig) -> Option<Lane> {
+    fn search(&mut self, canopy: &[[f32; 3]], config: &DetectorConfig) -> Option<Lane> {
         if canopy.len() < MIN_SEARCH_POINTS {
             return None;
         }
@@ -260,7 +263,7 @@ impl Lanes {
         lane.is_sane(config).then_some(lane)
     }
 
-    fn fill_hist(&mut self, canopy: &[[f32; 2]], a: f64, stride: usize) {
+    fn fill_hist(&mut self, canopy: &[[f32; 3]], a: f64, stride: usize) {
         self.hist.iter_mut().for_each(|h| *h = 0.0);
         for p in canopy.iter().step_by(stride) {
             let u = p[1] as f64 - a * p[0] as f64;
@@ -318,7 +321,7 @@ impl Lanes {
     }
 
     /// Bins the canopy points gated to the predicted rows, and the visible (any) points near the lane.
-    fn measure(&mut self, canopy: &[[f32; 2]], cropped: &[[f32; 3]], lane: &Lane, config: &DetectorConfig) {
+    fn measure(&mut self, canopy: &[[f32; 3]], cropped: &[[f32; 3]], lane: &Lane, config: &DetectorConfig) {
         self.bins.iter_mut().for_each(|b| *b = Bin::default());
         self.visible.iter_mut().for_each(|v| *v = 0);
         let gate = config.gate_fraction * lane.s;
@@ -329,12 +332,16 @@ impl Lanes {
             if d.abs() > gate {
                 continue;
             }
+            // Weighting by height squared favours the crest: a row seen from one side shows more of its
+            // near flank, and the flank would pull a plain mean towards the sensor.
+            let w = (p[2] as f64).powi(2) + HEIGHT_WEIGHT_FLOOR_M2;
             if let Some(i) = self.bin_index(j, x, inv_bin)
                 && let Some(b) = self.bins.get_mut(i)
             {
                 b.n += 1;
-                b.sx += x;
-                b.sy += y;
+                b.w += w;
+                b.sx += w * x;
+                b.sy += w * y;
             }
         }
         let reach = 2.0 * lane.s;
@@ -359,7 +366,7 @@ impl Lanes {
     fn store_centroids(&self, odom: &Pose2, config: &DetectorConfig, map: &mut CentroidMap) {
         for b in self.bins.iter().filter(|b| b.n as usize >= config.map_min_points) {
             let n = b.n as f64;
-            map.push(odom, b.sx / n, b.sy / n, n.min(FULL_WEIGHT_POINTS) / FULL_WEIGHT_POINTS);
+            map.push(odom, b.sx / b.w, b.sy / b.w, n.min(FULL_WEIGHT_POINTS) / FULL_WEIGHT_POINTS);
         }
     }
 
@@ -484,13 +491,13 @@ fn hist_centre(i: usize) -> f64 {
 mod tests {
     use super::*;
 
-    fn rows_of_points(offsets: &[f64], heading: f64) -> Vec<[f32; 2]> {
+    fn rows_of_points(offsets: &[f64], heading: f64) -> Vec<[f32; 3]> {
         let mut pts = Vec::new();
         for i in 0..250 {
             let x = 1.5 + 0.012 * i as f64;
             for &o in offsets {
                 for dy in [-0.06, -0.02, 0.02, 0.06] {
-                    pts.push([x as f32, (o + dy + heading.tan() * x) as f32]);
+                    pts.push([x as f32, (o + dy + heading.tan() * x) as f32, 0.1]);
                 }
             }
         }
