@@ -24,3 +24,4 @@ pub mod perception;
 pub use error::ConfigError;
 pub use geometry::{Mount, Point3, Pose2, Twist2};
 pub use perception::{Detection, RowEstimate, RowStatus, Scan};
+pub use perception::{DetectorConfig, DetectorMode, RowDetector};
