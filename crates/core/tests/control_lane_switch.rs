@@ -1,99 +1,14 @@
-//! Lane-switching behaviour against a synthetic field: straight rows along odom x from x = 0 to
-//! x = `length`, 0.75 m apart at y = −j·0.75, seen by an ideal detector. The closed-loop tests drive
+//! Lane-switching behaviour against the synthetic field of `control_field`, seen by an ideal detector. The closed-loop tests drive
 //! an ideal unicycle with the MPC; the transition tests place the robot directly.
 
 use croprow_core::control::lane_switch::{LaneSwitchConfig, LaneSwitcher, Mode, StopReason, TurnDirection};
 use croprow_core::control::mpc::{Mpc, MpcConfig, SolveStatus};
 use croprow_core::control::reference::ReferenceConfig;
-use croprow_core::geometry::wrap_angle;
-use croprow_core::{Detection, Pose2, RowEstimate, RowStatus, Twist2};
+use croprow_core::{Detection, Pose2, RowStatus, Twist2};
 
-const SPACING: f64 = 0.75;
-const PERIOD_S: f64 = 0.1;
-/// A wheel closer than this to a row line, inside the field, touches a plant, m.
-const PLANT_HALF_WIDTH: f64 = 0.05;
-const WHEELS: [(f64, f64); 4] = [(0.6095, 0.762), (0.6095, -0.762), (-0.6095, 0.762), (-0.6095, -0.762)];
+mod control_field;
 
-struct Field {
-    rows: usize,
-    length_m: f64,
-    /// Rows missing (as if the detector lost them) between these x, m.
-    blackout: Option<(f64, f64)>,
-}
-
-impl Field {
-    fn row_y(&self, j: usize) -> f64 {
-        -(j as f64) * SPACING
-    }
-
-    /// What an ideal detector reports at `pose`: the nearest rows left and right, the row end when it
-    /// is within 4 m ahead, nothing when the robot looks away from the field.
-    fn detect(&self, stamp_s: f64, pose: &Pose2) -> Detection {
-        let forward = pose.yaw.cos() >= 0.0;
-        let row_dir = if forward { 0.0 } else { std::f64::consts::PI };
-        let heading = wrap_angle(row_dir - pose.yaw);
-        let ahead_to_end = if forward { self.length_m - pose.x } else { pose.x };
-        let behind_start = if forward { pose.x } else { self.length_m - pose.x };
-        let in_view = ahead_to_end > -0.5 && behind_start > -4.0;
-        if heading.abs() > 0.6 || !in_view || self.blackout.is_some_and(|(a, b)| pose.x > a && pose.x < b) {
-            return Detection::empty(stamp_s, RowStatus::Searching);
-        }
-        let mut left: Option<RowEstimate> = None;
-        let mut right: Option<RowEstimate> = None;
-        let c = pose.yaw.cos();
-        for j in 0..self.rows {
-            let t = (self.row_y(j) - pose.y) / c;
-            let est = RowEstimate {
-                line: [0.0, t, 4.0, t],
-                offset_m: t,
-                heading_rad: heading,
-                curvature_per_m: 0.0,
-                confidence: 1.0,
-            };
-            if t > 0.0 && left.is_none_or(|l| t < l.offset_m) {
-                left = Some(est);
-            }
-            if t < 0.0 && right.is_none_or(|r| t > r.offset_m) {
-                right = Some(est);
-            }
-        }
-        let status = if ahead_to_end <= 0.0 { RowStatus::EndOfRow } else { RowStatus::Tracking };
-        Detection {
-            left,
-            right,
-            row_spacing_m: Some(SPACING),
-            row_end_ahead_m: (ahead_to_end < 4.0).then_some(ahead_to_end),
-            ..Detection::empty(stamp_s, status)
-        }
-    }
-
-    /// Wheels over a plant at `pose`.
-    fn contacts(&self, pose: &Pose2) -> usize {
-        WHEELS
-            .iter()
-            .filter(|&&(wx, wy)| {
-                let (x, y) = pose.transform_point(wx, wy);
-                x >= 0.0
-                    && x <= self.length_m
-                    && (0..self.rows).any(|j| (y - self.row_y(j)).abs() < PLANT_HALF_WIDTH)
-            })
-            .count()
-    }
-}
-
-fn drive(p: Pose2, cmd: Twist2, dt: f64) -> Pose2 {
-    let h = dt / 10.0;
-    let mut q = p;
-    for _ in 0..10 {
-        let mid = q.yaw + 0.5 * cmd.omega * h;
-        q = Pose2::new(
-            q.x + cmd.v * h * mid.cos(),
-            q.y + cmd.v * h * mid.sin(),
-            wrap_angle(q.yaw + cmd.omega * h),
-        );
-    }
-    q
-}
+use control_field::{Field, PERIOD_S, SPACING, drive, lane_start};
 
 struct Run {
     final_mode: Mode,
@@ -146,11 +61,6 @@ fn run(field: &Field, cfg: LaneSwitchConfig, start: Pose2, steps: usize) -> Run 
     }
     out.max_excursion_m = sw.max_excursion_m();
     out
-}
-
-/// Lane `k` lies between rows 2k and 2k+1.
-fn lane_start(k: usize) -> Pose2 {
-    Pose2::new(0.5, -(2.0 * k as f64 + 0.5) * SPACING, 0.0)
 }
 
 #[test]

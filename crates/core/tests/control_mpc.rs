@@ -5,23 +5,9 @@ use croprow_core::control::mpc::{Mpc, MpcConfig, SolveStatus};
 use croprow_core::control::path::Path;
 use croprow_core::{Pose2, Twist2};
 
-const PERIOD_S: f64 = 0.1;
+mod control_field;
 
-/// Exact unicycle motion over `dt` with constant `(v, ω)`, in sub-steps.
-fn drive(p: Pose2, cmd: Twist2, dt: f64) -> Pose2 {
-    let mut q = p;
-    let n = 10;
-    let h = dt / n as f64;
-    for _ in 0..n {
-        let yaw_mid = q.yaw + 0.5 * cmd.omega * h;
-        q = Pose2::new(
-            q.x + cmd.v * h * yaw_mid.cos(),
-            q.y + cmd.v * h * yaw_mid.sin(),
-            q.yaw + cmd.omega * h,
-        );
-    }
-    q
-}
+use control_field::{PERIOD_S, drive};
 
 /// Runs the closed loop from `start` and returns, per step, (distance travelled, |lateral error|).
 fn closed_loop(

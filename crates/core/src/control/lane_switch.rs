@@ -390,6 +390,16 @@ impl LaneSwitcher {
         self.s_hint_m
     }
 
+    /// Lanes whose row end has been cleared.
+    pub fn lanes_completed(&self) -> u32 {
+        self.lanes_completed
+    }
+
+    /// Index of the current lane (see [`LaneSwitchConfig::start_lane`]).
+    pub fn lane(&self) -> u32 {
+        self.lane
+    }
+
     /// Largest distance `base_link` went past a row-end line so far, m.
     pub fn max_excursion_m(&self) -> f64 {
         self.max_excursion_m
