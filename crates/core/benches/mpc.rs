@@ -25,7 +25,11 @@ const SPEED_MPS: f64 = 0.5;
 
 fn advance(p: Pose2, cmd: Twist2) -> Pose2 {
     let mid = p.yaw + 0.5 * cmd.omega * PERIOD_S;
-    Pose2::new(p.x + cmd.v * PERIOD_S * mid.cos(), p.y + cmd.v * PERIOD_S * mid.sin(), p.yaw + cmd.omega * PERIOD_S)
+    Pose2::new(
+        p.x + cmd.v * PERIOD_S * mid.cos(),
+        p.y + cmd.v * PERIOD_S * mid.sin(),
+        p.yaw + cmd.omega * PERIOD_S,
+    )
 }
 
 fn following(c: &mut Criterion) {

@@ -126,6 +126,7 @@ fn recovers_from_30_cm_and_8_degrees_within_3_m() {
     let (trace, _) = closed_loop(&field, NavigatorConfig::default(), start, 20.0);
     let last_bad = trace.iter().rposition(|t| t.1 >= 0.02).unwrap_or(0);
     let settle = trace.get(last_bad + 1).map_or(f64::INFINITY, |t| t.0);
+    eprintln!("navigator recovery from 0.3 m / 8 deg: under 2 cm for good after {settle:.2} m");
     assert!(settle < 3.0, "settled after {settle:.2} m");
 }
 

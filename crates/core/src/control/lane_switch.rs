@@ -109,7 +109,10 @@ pub struct LaneSwitchConfig {
     pub entry_confirmations: u32,
     /// Deepest `base_link` may go into the field before the new lane is confirmed, m. Default 1.0.
     pub max_unconfirmed_entry_m: f64,
-    /// Distance to the row end assumed when the detector reports the end without one, m. Default 0.
+    /// Distance to the row end assumed when the detector reports the end of the row without saying
+    /// where (the paper's pipeline, which sees the canopy thin out), m. Default 1.6: where the lowest
+    /// beam of the paper's mount (1.5 m high, 30° down, 0.6 m ahead of `base_link`) meets a 0.5 m
+    /// canopy, the nearest canopy a scan shows. The default pipeline reports the distance itself.
     pub default_row_end_ahead_m: f64,
 }
 
@@ -136,7 +139,7 @@ impl Default for LaneSwitchConfig {
             entry_alignment_m: 0.1,
             entry_confirmations: 3,
             max_unconfirmed_entry_m: 1.0,
-            default_row_end_ahead_m: 0.0,
+            default_row_end_ahead_m: 1.6,
         }
     }
 }
