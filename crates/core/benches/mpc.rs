@@ -64,7 +64,7 @@ fn recovery(c: &mut Criterion) {
     let mut cycle = 0usize;
     c.bench_function("mpc_warm_solve_n20_recovery", |b| {
         b.iter(|| {
-            if cycle % 60 == 0 {
+            if cycle.is_multiple_of(60) {
                 pose = start;
             }
             cycle += 1;
