@@ -5,7 +5,7 @@
 mod support;
 
 use croprow_core::control::lane_switch::{LaneSwitchConfig, Mode};
-use croprow_core::navigator::{NavInput, Navigator, NavigatorConfig};
+use croprow_core::navigator::{NavInput, NavOutput, Navigator, NavigatorConfig};
 use croprow_core::{Mount, Pose2, Scan, Twist2};
 use support::{Field, Lidar};
 
@@ -19,42 +19,65 @@ struct Trace {
     final_pose: Pose2,
 }
 
+/// The robot in the loop: a ray-cast scanner, the navigator, an ideal unicycle, one step per scan.
+struct Rig {
+    mount: Mount,
+    lidar: Lidar,
+    nav: Navigator,
+    pose: Pose2,
+}
+
+impl Rig {
+    fn new(cfg: NavigatorConfig, start: Pose2, seed: u64) -> Self {
+        let mut lidar = Lidar::vlp16(seed);
+        lidar.azimuth_step_deg = 0.4; // half the rays: same geometry, half the test time
+        Self { mount: Mount::default(), lidar, nav: Navigator::new(cfg).unwrap(), pose: start }
+    }
+
+    /// One scan and control cycle at step `i`; returns the output and the distance driven.
+    fn cycle(&mut self, field: &Field, i: usize) -> (NavOutput, f64) {
+        let t = i as f64 * PERIOD_S;
+        let points = self.lidar.scan(field, &self.pose, &self.mount);
+        let scan = Some(Scan { stamp_s: t, points: &points });
+        let input = NavInput {
+            stamp_s: t,
+            odom: self.pose,
+            odom_twist: Twist2::ZERO,
+            scan,
+            mount: &self.mount,
+            mpc_budget: None,
+        };
+        let out = self.nav.step(input);
+        assert!(out.cmd.is_finite());
+        let p = self.pose;
+        let mid = p.yaw + 0.5 * out.cmd.omega * PERIOD_S;
+        let dist = out.cmd.v * PERIOD_S;
+        self.pose =
+            Pose2::new(p.x + dist * mid.cos(), p.y + dist * mid.sin(), p.yaw + out.cmd.omega * PERIOD_S);
+        (out, dist)
+    }
+}
+
 fn run(field: &Field, cfg: NavigatorConfig, start: Pose2, seconds: f64) -> Trace {
-    let mount = Mount::default();
-    let mut lidar = Lidar::vlp16(3);
-    lidar.azimuth_step_deg = 0.4; // half the rays: same geometry, half the test time
-    let mut nav = Navigator::new(cfg).unwrap();
-    let mut pose = start;
+    let mut rig = Rig::new(cfg, start, 3);
     let mut dist = 0.0;
     let mut errors = vec![];
     let mut final_mode = Mode::Acquiring;
     for i in 0..(seconds / PERIOD_S) as usize {
-        let t = i as f64 * PERIOD_S;
-        let points = lidar.scan(field, &pose, &mount);
-        let out = nav.step(NavInput {
-            stamp_s: t,
-            odom: pose,
-            odom_twist: Twist2::ZERO,
-            scan: Some(Scan { stamp_s: t, points: &points }),
-            mount: &mount,
-            mpc_budget: None,
-        });
-        assert!(out.cmd.is_finite());
-        let mid = pose.yaw + 0.5 * out.cmd.omega * PERIOD_S;
-        let next = Pose2::new(
-            pose.x + out.cmd.v * PERIOD_S * mid.cos(),
-            pose.y + out.cmd.v * PERIOD_S * mid.sin(),
-            pose.yaw + out.cmd.omega * PERIOD_S,
-        );
-        dist += (next.x - pose.x).hypot(next.y - pose.y);
-        pose = next;
-        errors.push((dist, (pose.y - field.curve(pose.x)).abs()));
+        let (out, d) = rig.cycle(field, i);
+        dist += d;
+        errors.push((dist, (rig.pose.y - field.curve(rig.pose.x)).abs()));
         final_mode = out.mode;
         if matches!(out.mode, Mode::Done | Mode::Stopped { .. }) {
             break;
         }
     }
-    Trace { errors, final_mode, max_excursion_m: nav.lane_switcher().max_excursion_m(), final_pose: pose }
+    Trace {
+        errors,
+        final_mode,
+        max_excursion_m: rig.nav.lane_switcher().max_excursion_m(),
+        final_pose: rig.pose,
+    }
 }
 
 #[test]
@@ -67,7 +90,10 @@ fn recovers_to_the_centre_line_with_the_real_detector() {
     let settle = tr.errors.get(last_bad + 1).map_or(f64::INFINITY, |e| e.0);
     let tail: Vec<f64> = tr.errors.iter().filter(|e| e.0 > 4.0).map(|e| e.1).collect();
     let mean = tail.iter().sum::<f64>() / tail.len().max(1) as f64;
-    eprintln!("real detector, young corn: under 2 cm for good after {settle:.2} m, mean |cross-track| after 4 m {:.2} cm", 100.0 * mean);
+    eprintln!(
+        "real detector, young corn: under 2 cm for good after {settle:.2} m, mean |cross-track| after 4 m {:.2} cm",
+        100.0 * mean
+    );
     assert!(settle < 3.0, "settled after {settle:.2} m");
     assert!(mean < 0.01, "mean cross-track {mean:.4} m");
 }
@@ -75,12 +101,59 @@ fn recovers_to_the_centre_line_with_the_real_detector() {
 #[test]
 fn stops_past_the_row_end_inside_the_headland() {
     let field = Field { row_end_x_m: Some(8.0), ..Field::young_corn() };
-    let cfg = NavigatorConfig { lane_switch: LaneSwitchConfig { lanes: 1, ..LaneSwitchConfig::default() }, ..NavigatorConfig::default() };
+    let cfg = NavigatorConfig {
+        lane_switch: LaneSwitchConfig { lanes: 1, ..LaneSwitchConfig::default() },
+        ..NavigatorConfig::default()
+    };
     let tr = run(&field, cfg.clone(), Pose2::new(0.0, 0.0, 0.0), 40.0);
     assert_eq!(tr.final_mode, Mode::Done);
     // The rear wheels are past the last plant, and base_link within the 1.5 m headland.
     let past = tr.final_pose.x - 8.0;
-    eprintln!("real detector, row end: stopped {past:.3} m past the row end (excursion {:.3} m)", tr.max_excursion_m);
+    eprintln!(
+        "real detector, row end: stopped {past:.3} m past the row end (excursion {:.3} m)",
+        tr.max_excursion_m
+    );
     assert!(past > cfg.lane_switch.wheel_x_m, "stopped {past:.3} m past the end");
     assert!(past <= 1.5, "stopped {past:.3} m past the end");
+}
+
+#[test]
+fn switches_to_the_next_lane_with_the_real_detector() {
+    // Rows end at x = 8 m; the robot turns right into the lane centred at y = −1.5 m and follows it back.
+    let field = Field { row_end_x_m: Some(8.0), ..Field::young_corn() };
+    let cfg = NavigatorConfig {
+        lane_switch: LaneSwitchConfig { lanes: 2, ..LaneSwitchConfig::default() },
+        ..NavigatorConfig::default()
+    };
+    let mut rig = Rig::new(cfg, Pose2::new(2.0, 0.0, 0.0), 5);
+    let wheels = [(0.6095, 0.762), (0.6095, -0.762), (-0.6095, 0.762), (-0.6095, -0.762)];
+    let mut contacts = 0;
+    let mut modes = vec![];
+    for i in 0..900 {
+        let (out, _) = rig.cycle(&field, i);
+        let pose = rig.pose;
+        if modes.last() != Some(&out.mode) {
+            modes.push(out.mode);
+        }
+        for (wx, wy) in wheels {
+            let (x, y) = pose.transform_point(wx, wy);
+            let on_row = (-field.rows_each_side..field.rows_each_side)
+                .any(|k| (y - field.row_y(k, x)).abs() < field.plant_half_width_m);
+            contacts += usize::from(x <= 8.0 && on_row);
+        }
+        if out.mode.is_stopped() || (out.lane == 1 && pose.x < 3.0) {
+            break;
+        }
+    }
+    let pose = rig.pose;
+    let sw = rig.nav.lane_switcher();
+    eprintln!(
+        "real detector, lane switch: modes {modes:?}, excursion {:.3} m, contacts {contacts}, final {pose:?}",
+        sw.max_excursion_m()
+    );
+    assert_eq!((sw.mode(), sw.lane(), sw.lanes_completed()), (Mode::Following, 1, 1), "modes {modes:?}");
+    assert_eq!(contacts, 0);
+    assert!(sw.max_excursion_m() <= 1.5);
+    // Back on the new lane's centre line (y = −1.5 m), heading −x.
+    assert!((pose.y + 1.5).abs() < 0.03, "{pose:?}");
 }
