@@ -157,3 +157,24 @@ fn switches_to_the_next_lane_with_the_real_detector() {
     // Back on the new lane's centre line (y = −1.5 m), heading −x.
     assert!((pose.y + 1.5).abs() < 0.03, "{pose:?}");
 }
+
+#[test]
+fn follows_curved_rows_with_the_real_detector() {
+    // The paper's curved field: y = 6 sin(2πx/100), 0.27 rad at its steepest, 42 m radius at its apex.
+    let field = Field { curve_amplitude_m: 6.0, curve_wavelength_m: 100.0, ..Field::young_corn() };
+    let x0 = 18.0;
+    let start = Pose2::new(x0, field.curve(x0), field.curve_slope(x0).atan());
+    let tr = run(&field, NavigatorConfig::default(), start, 25.0);
+    assert_eq!(tr.final_mode, Mode::Following);
+    // Cross-track measured across the rows (along y), after 2 m of start-up.
+    let tail: Vec<f64> = tr.errors.iter().filter(|e| e.0 > 2.0).map(|e| e.1).collect();
+    let mean = tail.iter().sum::<f64>() / tail.len().max(1) as f64;
+    let worst = tail.iter().copied().fold(0.0, f64::max);
+    eprintln!(
+        "real detector, curved rows: mean |cross-track| {:.2} cm, worst {:.2} cm",
+        100.0 * mean,
+        100.0 * worst
+    );
+    assert!(mean < 0.03, "mean cross-track {mean:.4} m");
+    assert!(worst < 0.1, "worst cross-track {worst:.4} m");
+}
