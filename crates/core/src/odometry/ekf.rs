@@ -124,24 +124,29 @@ impl Ekf {
     /// A filter at the `odom` origin, at rest, with the configured initial bias uncertainty.
     pub fn new(cfg: EkfConfig) -> Result<Self, ConfigError> {
         cfg.validate()?;
+        Ok(Self { p: Self::initial_covariance(&cfg), cfg, x: Vec6::zeros(), stamp_s: None })
+    }
+
+    /// Velocities unknown (1 m/s, 1 rad/s), pose exact (it defines `odom`), bias as configured.
+    fn initial_covariance(cfg: &EkfConfig) -> Mat6 {
         let mut p = Mat6::zeros();
         p[(V, V)] = 1.0;
         p[(W, W)] = 1.0;
         p[(B, B)] = cfg.initial_bias_std_radps.powi(2);
-        Ok(Self { cfg, x: Vec6::zeros(), p, stamp_s: None })
+        p
     }
 
-    /// Restarts at `pose` (in `odom`), at rest, at `stamp_s`.
+    /// Restarts at `pose` (in `odom`), at rest, at `stamp_s`; the bias estimate and its uncertainty
+    /// are kept (the gyro has not changed).
     pub fn reset(&mut self, stamp_s: f64, pose: Pose2) -> Result<(), EkfError> {
         if !stamp_s.is_finite() || !pose.is_finite() {
             return Err(EkfError::NonFinite { what: "reset pose or stamp" });
         }
-        let bias = self.x[B];
-        *self = Self {
-            x: Vec6::from([pose.x, pose.y, wrap_angle(pose.yaw), 0.0, 0.0, bias]),
-            stamp_s: Some(stamp_s),
-            ..Self::new(self.cfg.clone()).map_err(|_| EkfError::NonFinite { what: "config" })?
-        };
+        let (bias, bias_var) = (self.x[B], self.p[(B, B)]);
+        self.x = Vec6::from([pose.x, pose.y, wrap_angle(pose.yaw), 0.0, 0.0, bias]);
+        self.p = Self::initial_covariance(&self.cfg);
+        self.p[(B, B)] = bias_var;
+        self.stamp_s = Some(stamp_s);
         Ok(())
     }
 
@@ -400,6 +405,19 @@ mod tests {
         // The clock moved on: the next sample is accepted again.
         ekf.update_wheel(100.02, 0.5, 0.0).unwrap();
         assert!((ekf.pose().x - pose.x - 0.01).abs() < 1e-3);
+    }
+
+    #[test]
+    fn reset_moves_the_pose_and_keeps_the_bias() {
+        let (_, mut ekf, _, _) = drive(1.0, 1.0, 0.02, 20.0);
+        let bias = ekf.gyro_bias_radps();
+        ekf.reset(30.0, Pose2::new(1.0, 2.0, 0.5)).unwrap();
+        assert_eq!(
+            (ekf.pose(), ekf.twist(), ekf.stamp_s()),
+            (Pose2::new(1.0, 2.0, 0.5), Twist2::ZERO, Some(30.0))
+        );
+        assert_eq!(ekf.gyro_bias_radps(), bias);
+        assert!(ekf.reset(31.0, Pose2::new(f64::NAN, 0.0, 0.0)).is_err());
     }
 
     #[test]
