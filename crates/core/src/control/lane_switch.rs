@@ -229,7 +229,7 @@ impl LaneSwitchConfig {
         if self.lanes > 0 {
             self.lanes
         } else {
-            (self.field_lanes.saturating_sub(self.start_lane + 1)) / self.lane_step + 1
+            self.field_lanes.saturating_sub(self.start_lane.saturating_add(1)) / self.lane_step.max(1) + 1
         }
     }
 }
@@ -472,7 +472,7 @@ impl LaneSwitcher {
                 if let Some(end) = self.row_end
                     && along(&end, odom) >= self.cfg.turn_start_m()
                 {
-                    self.lanes_completed += 1;
+                    self.lanes_completed = self.lanes_completed.saturating_add(1);
                     if self.lanes_completed >= self.cfg.lane_count() {
                         self.mode = Mode::Done;
                     } else {
@@ -585,7 +585,7 @@ impl LaneSwitcher {
         self.turn.extend(start, arc, k);
         self.turn.extend(start, d + self.cfg.max_unconfirmed_entry_m + 10.0, 0.0);
         self.s_hint_m = 0.0;
-        self.turn_index += 1;
+        self.turn_index = self.turn_index.wrapping_add(1);
         self.exit_line = Some(*end);
         self.row_end = None;
     }
@@ -607,16 +607,16 @@ impl LaneSwitcher {
             if lateral.abs() <= self.cfg.entry_lateral_tolerance_m
                 && heading.abs() <= self.cfg.entry_heading_tolerance_rad
             {
-                self.agree += 1;
+                self.agree = self.agree.saturating_add(1);
                 self.disagree = 0;
             } else {
-                self.disagree += 1;
+                self.disagree = self.disagree.saturating_add(1);
                 self.agree = 0;
             }
             let aligned = f.lateral_m.abs() <= self.cfg.entry_alignment_m
                 && f.heading_rad.abs() <= self.cfg.entry_heading_tolerance_rad;
             if self.agree >= self.cfg.entry_confirmations && aligned && self.reference.update(d, odom) {
-                self.lane += self.cfg.lane_step;
+                self.lane = self.lane.saturating_add(self.cfg.lane_step);
                 self.enter_following(odom);
                 return;
             }
