@@ -150,3 +150,28 @@ fn non_finite_path_stops() {
     let sol = mpc.solve(&Default::default(), &path, 0.5, Twist2::new(0.5, 0.0), None);
     assert_eq!((sol.status, sol.cmd), (SolveStatus::Failed, Twist2::ZERO));
 }
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(200))]
+
+    /// Whatever finite state, curvature and speed it is given, the command is finite and bounded.
+    #[test]
+    fn any_finite_input_gives_a_finite_bounded_command(
+        lateral in -1e3f64..1e3,
+        heading in -10.0f64..10.0,
+        curvature in -5.0f64..5.0,
+        speed in -10.0f64..10.0,
+        prev_v in -5.0f64..5.0,
+        prev_w in -5.0f64..5.0,
+    ) {
+        let cfg = MpcConfig::default();
+        let mut mpc = Mpc::new(cfg.clone()).unwrap();
+        let mut path = Path::with_capacity(1);
+        path.push(Pose2::new(0.0, 0.0, 0.0), 10.0, curvature);
+        let state = croprow_core::control::Frenet { s_m: 0.0, lateral_m: lateral, heading_rad: heading, curvature_per_m: curvature };
+        let sol = mpc.solve(&state, &path, speed, Twist2::new(prev_v, prev_w), None);
+        proptest::prop_assert!(sol.cmd.is_finite());
+        proptest::prop_assert!(sol.cmd.v >= cfg.speed_min_mps && sol.cmd.v <= cfg.speed_max_mps);
+        proptest::prop_assert!(sol.cmd.omega.abs() <= cfg.yaw_rate_max_radps);
+    }
+}
