@@ -55,6 +55,8 @@ const PRIOR_FREE: f64 = 1e-3;
 /// accepted as a row pattern.
 const MIN_SEARCH_POINTS: usize = 30;
 const MIN_PERIODICITY: f64 = 0.15;
+/// Fewest centroids from the current scan for it to count as seeing the rows.
+const MIN_FRESH_CENTROIDS: usize = 2;
 /// Least total centroid weight (full-weight centroids) for a correction to be accepted.
 const MIN_FIT_WEIGHT: f64 = 3.0;
 
@@ -215,9 +217,11 @@ impl Lanes {
             map.clear();
         }
         self.measure(canopy, cropped, &predicted, config);
-        self.store_centroids(odom, config, map);
+        let fresh = self.store_centroids(odom, config, map);
         let fitted = self.correct(&predicted, odom, config, map, centroids);
-        let updated = fitted.is_some();
+        // Only this scan's own centroids count as seeing the rows: the map alone would keep a lane alive
+        // for as long as its centroids stay ahead of the robot.
+        let updated = fitted.is_some() && fresh >= MIN_FRESH_CENTROIDS;
         let (lane, support, far_x_m) = match fitted {
             Some((lane, support, far)) => (lane, support, far),
             None => (predicted, [0.0; 2], [0.0; 2]),
@@ -363,11 +367,15 @@ impl Lanes {
         (xi >= 0.0 && (xi as usize) < self.x_bins).then(|| row * self.x_bins + xi as usize)
     }
 
-    fn store_centroids(&self, odom: &Pose2, config: &DetectorConfig, map: &mut CentroidMap) {
+    /// Stores the bin centroids with enough points in the map; returns how many.
+    fn store_centroids(&self, odom: &Pose2, config: &DetectorConfig, map: &mut CentroidMap) -> usize {
+        let mut stored = 0;
         for b in self.bins.iter().filter(|b| b.n as usize >= config.map_min_points) {
             let n = b.n as f64;
             map.push(odom, b.sx / b.w, b.sy / b.w, n.min(FULL_WEIGHT_POINTS) / FULL_WEIGHT_POINTS);
+            stored += 1;
         }
+        stored
     }
 
     /// Two-pass weighted least squares of `(o, s, a, b)` on the map, regularised towards `predicted`.
