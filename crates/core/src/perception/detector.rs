@@ -31,6 +31,18 @@ const FULL_SUPPORT: f64 = 10.0;
 /// Confidence of a row that has no support of its own and is placed by its neighbours and the spacing.
 const INFERRED_CONFIDENCE: f64 = 0.25;
 
+/// A stage of [`RowDetector::detect`], for the per-stage benchmark (not a stable API).
+#[doc(hidden)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stage {
+    /// Transform, crop, canopy split (both modes).
+    Preprocess,
+    /// Paper: K-means per depth bin into the map. Default: predict, bin per row, store in the map.
+    Cluster,
+    /// Paper: first rows and RANSAC. Default: the joint least-squares correction.
+    Fit,
+}
+
 /// The crop-row detector. Built once from a validated [`DetectorConfig`]; every buffer is allocated in
 /// [`RowDetector::new`] (the point buffers for a full VLP-16 scan, the centroid map for
 /// `map_capacity` centroids), so [`RowDetector::detect`] does not allocate for scans up to that size.
@@ -107,6 +119,32 @@ impl RowDetector {
         match self.config.mode {
             DetectorMode::Paper => self.detect_paper(t, &odom, mount),
             DetectorMode::Default => self.detect_default(t, &odom),
+        }
+    }
+
+    /// Runs one stage alone on the buffers of the previous stage, for the per-stage benchmark (not a
+    /// stable API; no input checks, no state update beyond the map). Returns a count that depends on the
+    /// work done, so that the optimiser cannot drop it.
+    #[doc(hidden)]
+    pub fn run_stage(&mut self, stage: Stage, scan: Scan<'_>, odom: Pose2, mount: &Mount) -> usize {
+        let c = &self.config;
+        match (stage, c.mode) {
+            (Stage::Preprocess, _) => {
+                self.pre.run(scan.points, mount, c, self.plane_rule()) + self.pre.canopy.len()
+            }
+            (Stage::Cluster, DetectorMode::Paper) => {
+                self.paper.cluster_stage(&self.pre.canopy, mount.x_m, &odom, c, &mut self.map);
+                self.map.points().len()
+            }
+            (Stage::Cluster, DetectorMode::Default) => {
+                self.lanes.measure_stage(&self.pre.canopy, &self.pre.cropped, &odom, c, &mut self.map)
+            }
+            (Stage::Fit, DetectorMode::Paper) => {
+                self.paper.fit_stage(&odom, c, &self.map, &mut self.centroids)
+            }
+            (Stage::Fit, DetectorMode::Default) => {
+                self.lanes.correct_stage(&odom, c, &self.map, &mut self.centroids)
+            }
         }
     }
 

@@ -162,6 +162,8 @@ pub(crate) struct Lanes {
     visible: Vec<u32>,
     x_bins: usize,
     hist: Vec<f64>,
+    /// Map centroids in the fit window, `[x, y, weight]` in `base_link`.
+    local: Vec<[f64; 3]>,
     /// Row end in `odom`: point on the lane centre and the row direction, rad.
     end: Option<[f64; 3]>,
 }
@@ -178,6 +180,7 @@ impl Lanes {
             visible: vec![0; x_bins],
             x_bins,
             hist: vec![0.0; HIST_BINS],
+            local: Vec::with_capacity(config.map_capacity),
             end: None,
         }
     }
@@ -235,6 +238,38 @@ impl Lanes {
         self.model = Some((lane, *odom));
         self.update_end(&lane, odom, config);
         LaneOutput { lane: Some(lane), updated, support, far_x_m, row_end_ahead_m: self.end_ahead(odom) }
+    }
+
+    /// The measure stage alone (predict, bin, store), for the per-stage benchmark; returns the number of
+    /// centroids stored. Needs a tracked lane.
+    pub(crate) fn measure_stage(
+        &mut self,
+        canopy: &[[f32; 3]],
+        cropped: &[[f32; 3]],
+        odom: &Pose2,
+        config: &DetectorConfig,
+        map: &mut CentroidMap,
+    ) -> usize {
+        let Some(predicted) = self.model.and_then(|(lane, pose)| lane.transport(&pose, odom)) else {
+            return 0;
+        };
+        self.measure(canopy, cropped, &predicted, config);
+        self.store_centroids(odom, config, map)
+    }
+
+    /// The correct stage alone (least squares on the map), for the per-stage benchmark; returns the
+    /// number of centroids used.
+    pub(crate) fn correct_stage(
+        &mut self,
+        odom: &Pose2,
+        config: &DetectorConfig,
+        map: &CentroidMap,
+        centroids: &mut Vec<[f64; 2]>,
+    ) -> usize {
+        let Some(predicted) = self.model.and_then(|(lane, pose)| lane.transport(&pose, odom)) else {
+            return 0;
+        };
+        self.correct(&predicted, odom, config, map, centroids).map_or(0, |_| centroids.len())
     }
 
     /// Start-up search for heading, spacing and phase from one scan's canopy.
@@ -381,7 +416,7 @@ impl Lanes {
     /// Two-pass weighted least squares of `(o, s, a, b)` on the map, regularised towards `predicted`.
     /// Returns the lane, the support and the farthest centroid of the first left and right rows.
     fn correct(
-        &self,
+        &mut self,
         predicted: &Lane,
         odom: &Pose2,
         config: &DetectorConfig,
@@ -390,34 +425,50 @@ impl Lanes {
     ) -> Option<(Lane, [f64; 2], [f64; 2])> {
         let x_max = config.range_m + 11.0;
         let gate = config.gate_fraction * predicted.s;
+        // The window of the map in base_link, transformed once for both passes.
+        let (sin, cos) = odom.yaw.sin_cos();
+        self.local.clear();
+        for p in map.points() {
+            let (dx, dy) = (p[0] - odom.x, p[1] - odom.y);
+            let x = cos * dx + sin * dy;
+            if x >= -config.behind_m && x <= x_max {
+                self.local.push([x, cos * dy - sin * dx, p[2]]);
+            }
+        }
         let mut lane = *predicted;
         let mut support = [0.0; 2];
         let mut far = [0.0f64; 2];
         for pass in 0..2 {
-            let mut n = Matrix4::<f64>::zeros();
-            let mut r = Vector4::<f64>::zeros();
-            let mut total = 0.0;
+            // Sums of the symmetric normal matrix of φ = [1, q, x, x²] (q = j + ½) and of φ·y.
+            let [mut sw, mut sq, mut sx, mut sxx, mut sqq, mut sqx, mut sqxx, mut sxxx, mut sx4] = [0.0; 9];
+            let [mut sy, mut sqy, mut sxy, mut sxxy] = [0.0; 4];
             support = [0.0; 2];
             far = [0.0; 2];
             let last = pass == 1;
             if last {
                 centroids.clear();
             }
-            for p in map.points() {
-                let (x, y) = odom.inverse_transform_point(p[0], p[1]);
-                if x < -config.behind_m || x > x_max {
-                    continue;
-                }
+            for &[x, y, weight] in &self.local {
                 let (j, d) = lane.assign(x, y);
                 if d.abs() > gate || !(J_MIN..J_MIN + ROWS as i32).contains(&j) {
                     continue;
                 }
                 let robust = if pass == 0 { 1.0 } else { 1.0 / (1.0 + (d / CAUCHY_M).powi(2)) };
-                let w = p[2] * robust;
-                let phi = Vector4::new(1.0, j as f64 + 0.5, x, x * x);
-                n += w * phi * phi.transpose();
-                r += w * y * phi;
-                total += w;
+                let w = weight * robust;
+                let (q, xx) = (j as f64 + 0.5, x * x);
+                sw += w;
+                sq += w * q;
+                sx += w * x;
+                sxx += w * xx;
+                sqq += w * q * q;
+                sqx += w * q * x;
+                sqxx += w * q * xx;
+                sxxx += w * xx * x;
+                sx4 += w * xx * xx;
+                sy += w * y;
+                sqy += w * q * y;
+                sxy += w * x * y;
+                sxxy += w * xx * y;
                 if j == 0 || j == -1 {
                     let k = usize::from(j == -1);
                     support[k] += w;
@@ -427,9 +478,16 @@ impl Lanes {
                     centroids.push([x, y]);
                 }
             }
-            if total < MIN_FIT_WEIGHT {
+            if sw < MIN_FIT_WEIGHT {
                 return None;
             }
+            let mut n = Matrix4::new(
+                sw, sq, sx, sxx, //
+                sq, sqq, sqx, sqxx, //
+                sx, sqx, sxx, sxxx, //
+                sxx, sqxx, sxxx, sx4,
+            );
+            let mut r = Vector4::new(sy, sqy, sxy, sxxy);
             // Priors (information form): a lone row cannot tell the spacing, a short stretch cannot tell
             // the curvature; both then stay at their prediction.
             let curvature_weight = if config.fit_curvature { PRIOR_CURVATURE } else { 1e12 };
