@@ -16,7 +16,8 @@ mod support;
 /// Scans of a grown, closed canopy, 0.1 m apart, and their poses.
 fn scans() -> Vec<(Pose2, Vec<Point3>)> {
     let field = support::Field::grown_closed();
-    let mut lidar = support::Lidar { organized: true, ..support::Lidar::vlp16(42) };
+    let mut lidar = support::Lidar::vlp16(42);
+    lidar.organized = true;
     (0..40)
         .map(|i| {
             let pose = Pose2::new(0.1 * i as f64, 0.02, 0.01);
