@@ -133,7 +133,7 @@ impl RowDetector {
                 self.pre.run(scan.points, mount, c, self.plane_rule()) + self.pre.canopy.len()
             }
             (Stage::Cluster, DetectorMode::Paper) => {
-                self.paper.cluster_stage(&self.pre.canopy, mount.x_m, &odom, c, &mut self.map);
+                self.paper.cluster_bins(&self.pre.canopy, mount.x_m, &odom, c, &mut self.map);
                 self.map.points().len()
             }
             (Stage::Cluster, DetectorMode::Default) => {

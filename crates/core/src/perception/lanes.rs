@@ -23,12 +23,19 @@
 
 use nalgebra::{Matrix3, Matrix4, Vector3, Vector4};
 
-use crate::geometry::Pose2;
+use crate::geometry::{Pose2, wrap_angle};
 
 use super::RowEstimate;
 use super::config::DetectorConfig;
 use super::map::CentroidMap;
 
+/// Offset that keeps row numbers positive for the truncating cast in [`Lane::assign`]; far beyond any
+/// row that is tracked.
+const ROUND_BIAS: f64 = 1024.0;
+/// The map takes a new set of centroids once the robot has moved this far (m) or turned this much (rad)
+/// since the last set: at rest it would otherwise fill with copies of one view.
+const KEYFRAME_M: f64 = 0.15;
+const KEYFRAME_RAD: f64 = 0.035;
 /// Rows tracked: j in `J_MIN..J_MIN + ROWS` (four each side).
 const J_MIN: i32 = -4;
 const ROWS: usize = 8;
@@ -80,9 +87,11 @@ impl Lane {
 
     /// Row index and signed lateral residual of a point, m.
     fn assign(&self, x: f64, y: f64) -> (i32, f64) {
-        let r = (y - self.centre(x)) / self.s - 0.5;
-        let j = r.round();
-        (j as i32, (r - j) * self.s)
+        let r = ((y - self.centre(x)) / self.s - 0.5).clamp(-ROUND_BIAS, ROUND_BIAS);
+        // Rounding by a biased truncating cast: `f64::round` is a libm call on baseline x86-64, and this
+        // runs for every canopy point.
+        let j = (r + ROUND_BIAS + 0.5) as i32 - ROUND_BIAS as i32;
+        (j, (r - j as f64) * self.s)
     }
 
     /// The same lane with its centre moved by whole spacings to the one nearest the robot, so that
@@ -162,8 +171,12 @@ pub(crate) struct Lanes {
     visible: Vec<u32>,
     x_bins: usize,
     hist: Vec<f64>,
-    /// Map centroids in the fit window, `[x, y, weight]` in `base_link`.
+    /// Centroids of the fit, `[x, y, weight]` in `base_link`.
     local: Vec<[f64; 3]>,
+    /// This scan's centroids, `[x, y, weight]` in `base_link`.
+    current: Vec<[f64; 3]>,
+    /// Pose of the last centroids stored in the map.
+    last_key: Option<Pose2>,
     /// Row end in `odom`: point on the lane centre and the row direction, rad.
     end: Option<[f64; 3]>,
 }
@@ -180,13 +193,16 @@ impl Lanes {
             visible: vec![0; x_bins],
             x_bins,
             hist: vec![0.0; HIST_BINS],
-            local: Vec::with_capacity(config.map_capacity),
+            local: Vec::with_capacity(config.map_capacity + ROWS * x_bins),
+            current: Vec::with_capacity(ROWS * x_bins),
+            last_key: None,
             end: None,
         }
     }
 
     pub(crate) fn reset(&mut self) {
         self.model = None;
+        self.last_key = None;
         self.end = None;
         self.last_update_s = f64::NEG_INFINITY;
     }
@@ -205,6 +221,7 @@ impl Lanes {
         centroids.clear();
         if self.model.is_some() && t_s - self.last_update_s > config.lost_after_s {
             self.model = None;
+            self.last_key = None;
             map.clear();
         }
         let predicted = match self.model {
@@ -218,6 +235,7 @@ impl Lanes {
         if self.model.is_none() {
             // A new lane hypothesis: evidence stored against an older one would only confuse it.
             map.clear();
+            self.last_key = None;
         }
         self.measure(canopy, cropped, &predicted, config);
         let fresh = self.store_centroids(odom, config, map);
@@ -402,15 +420,26 @@ impl Lanes {
         (xi >= 0.0 && (xi as usize) < self.x_bins).then(|| row * self.x_bins + xi as usize)
     }
 
-    /// Stores the bin centroids with enough points in the map; returns how many.
-    fn store_centroids(&self, odom: &Pose2, config: &DetectorConfig, map: &mut CentroidMap) -> usize {
-        let mut stored = 0;
+    /// Collects this scan's bin centroids with enough points into `current` (`base_link`), and stores
+    /// them in the map when the robot has moved a keyframe distance since the last stored set. Returns
+    /// how many there are.
+    fn store_centroids(&mut self, odom: &Pose2, config: &DetectorConfig, map: &mut CentroidMap) -> usize {
+        self.current.clear();
         for b in self.bins.iter().filter(|b| b.n as usize >= config.map_min_points) {
             let n = b.n as f64;
-            map.push(odom, b.sx / b.w, b.sy / b.w, n.min(FULL_WEIGHT_POINTS) / FULL_WEIGHT_POINTS);
-            stored += 1;
+            self.current.push([b.sx / b.w, b.sy / b.w, n.min(FULL_WEIGHT_POINTS) / FULL_WEIGHT_POINTS]);
         }
-        stored
+        let keyframe = self.last_key.is_none_or(|k| {
+            (odom.x - k.x).hypot(odom.y - k.y) >= KEYFRAME_M
+                || wrap_angle(odom.yaw - k.yaw).abs() >= KEYFRAME_RAD
+        });
+        if keyframe {
+            for c in &self.current {
+                map.push(odom, c[0], c[1], c[2]);
+            }
+            self.last_key = Some(*odom);
+        }
+        self.current.len()
     }
 
     /// Two-pass weighted least squares of `(o, s, a, b)` on the map, regularised towards `predicted`.
@@ -425,13 +454,16 @@ impl Lanes {
     ) -> Option<(Lane, [f64; 2], [f64; 2])> {
         let x_max = config.range_m + 11.0;
         let gate = config.gate_fraction * predicted.s;
-        // The window of the map in base_link, transformed once for both passes.
+        // This scan's centroids, plus the map where this scan does not reach (near and behind the robot,
+        // which the tilted sensor no longer sees), in base_link, gathered once for both passes.
+        let view_start = self.current.iter().map(|c| c[0]).fold(x_max, f64::min);
         let (sin, cos) = odom.yaw.sin_cos();
         self.local.clear();
+        self.local.extend_from_slice(&self.current);
         for p in map.points() {
             let (dx, dy) = (p[0] - odom.x, p[1] - odom.y);
             let x = cos * dx + sin * dy;
-            if x >= -config.behind_m && x <= x_max {
+            if x >= -config.behind_m && x < view_start {
                 self.local.push([x, cos * dy - sin * dx, p[2]]);
             }
         }

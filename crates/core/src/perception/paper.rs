@@ -89,18 +89,6 @@ impl Paper {
         }
     }
 
-    /// The K-means stage alone, for the per-stage benchmark.
-    pub(crate) fn cluster_stage(
-        &mut self,
-        canopy: &[[f32; 3]],
-        sensor_x_m: f64,
-        odom: &Pose2,
-        config: &DetectorConfig,
-        map: &mut CentroidMap,
-    ) {
-        self.cluster_bins(canopy, sensor_x_m, odom, config, map);
-    }
-
     /// The row selection and RANSAC stage alone, for the per-stage benchmark; returns the rows found.
     pub(crate) fn fit_stage(
         &mut self,
@@ -116,8 +104,9 @@ impl Paper {
         usize::from(l) + usize::from(r)
     }
 
-    /// Counting-sorts the canopy by depth bin, then runs K-means and the lateral merge in each bin.
-    fn cluster_bins(
+    /// Counting-sorts the canopy by depth bin, then runs K-means and the lateral merge in each bin
+    /// (also the K-means stage of the per-stage benchmark).
+    pub(crate) fn cluster_bins(
         &mut self,
         canopy: &[[f32; 3]],
         sensor_x_m: f64,
