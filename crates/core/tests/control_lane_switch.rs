@@ -262,3 +262,22 @@ fn an_end_of_row_without_distance_assumes_the_configured_one() {
     let row_end = sw.row_end().unwrap();
     assert!((row_end.x - (pose.x + ahead)).abs() < 1e-9 && (row_end.y - pose.y).abs() < 1e-9, "{row_end:?}");
 }
+
+#[test]
+fn rows_lost_close_to_a_seen_row_end_are_expected() {
+    let f = field();
+    let mut sw = switcher(LaneSwitchConfig::default());
+    // 2 m before the end of a 10 m row: the end is in view.
+    let pose = Pose2::new(8.0, lane_start(0).y, 0.0);
+    sw.update(&pose, Some(&f.detect(0.0, &pose)));
+    let lost = Detection { row_end_ahead_m: Some(1.9), ..Detection::empty(0.1, RowStatus::Lost) };
+    let g = sw.update(&Pose2::new(8.1, pose.y, 0.0), Some(&lost));
+    assert_eq!(g.mode, Mode::Following);
+    assert!(g.speed_mps > 0.0);
+    // Far from any row end, the same status stops the robot.
+    let mut sw = switcher(LaneSwitchConfig::default());
+    let pose = Pose2::new(2.0, lane_start(0).y, 0.0);
+    sw.update(&pose, Some(&f.detect(0.0, &pose)));
+    let g = sw.update(&pose, Some(&Detection { row_end_ahead_m: Some(8.0), ..lost }));
+    assert_eq!(g.mode, Mode::Stopped { reason: StopReason::RowsLost });
+}

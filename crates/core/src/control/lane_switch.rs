@@ -12,7 +12,8 @@
 //!                       └──────────── new lane confirmed by the detector, robot aligned ──────────────┘
 //!                                                       ▼
 //!                                                      Done
-//! Following: rows Lost, or no row for `max_blind_distance_m` ─► Stopped { RowsLost | NoRows }
+//! Following: rows Lost, or no row for `max_blind_distance_m`, farther than `end_approach_m`
+//!            from a row end the detector has seen ─► Stopped { RowsLost | NoRows }
 //! Entering:  rows disagree with the planned lane ─► Stopped { WrongLane };
 //!            too deep into the field unconfirmed ─► Stopped { ReentryNotConfirmed }
 //! ```
@@ -97,6 +98,10 @@ pub struct LaneSwitchConfig {
     pub max_headland_excursion_m: f64,
     /// Distance driven without any row while following before stopping, m. Default 1.0.
     pub max_blind_distance_m: f64,
+    /// Distance to a row end the detector has seen within which missing or lost rows are expected
+    /// and the robot drives on to the end, m. Default 2.5: the paper's mount sees no canopy nearer
+    /// than about 1.6 m ahead of `base_link`, and the end estimate wobbles by a few decimetres.
+    pub end_approach_m: f64,
     /// Largest lateral offset between the detected and the planned centre line of a new lane, m.
     /// Default 0.25 (a third of a row spacing: a neighbouring lane is 0.75 m or more away).
     pub entry_lateral_tolerance_m: f64,
@@ -134,6 +139,7 @@ impl Default for LaneSwitchConfig {
             wheel_y_m: 0.762,
             max_headland_excursion_m: 1.5,
             max_blind_distance_m: 1.0,
+            end_approach_m: 2.5,
             entry_lateral_tolerance_m: 0.25,
             entry_heading_tolerance_rad: 0.15,
             entry_alignment_m: 0.1,
@@ -158,6 +164,7 @@ impl LaneSwitchConfig {
         check_range("lane_switch.clearance_margin_m", self.clearance_margin_m, 0.0, 10.0)?;
         check_range("lane_switch.max_headland_excursion_m", self.max_headland_excursion_m, 0.1, 50.0)?;
         check_range("lane_switch.max_blind_distance_m", self.max_blind_distance_m, 0.0, 100.0)?;
+        check_range("lane_switch.end_approach_m", self.end_approach_m, 0.0, 10.0)?;
         check_range(
             "lane_switch.entry_lateral_tolerance_m",
             self.entry_lateral_tolerance_m,
@@ -525,11 +532,9 @@ impl LaneSwitcher {
     fn follow(&mut self, odom: &Pose2, detection: Option<&Detection>, travelled: f64) {
         let mut saw_rows = false;
         if let Some(d) = detection {
-            if d.status == RowStatus::Lost {
-                self.mode = Mode::Stopped { reason: StopReason::RowsLost };
-                return;
+            if d.status != RowStatus::Lost {
+                saw_rows = self.reference.update(d, odom);
             }
-            saw_rows = self.reference.update(d, odom);
             if let Some(ahead) = d.row_end_ahead_m.filter(|a| a.is_finite()) {
                 self.row_end = Some(self.end_from(odom, ahead));
             } else if d.status == RowStatus::EndOfRow && self.row_end.is_none() {
@@ -548,8 +553,14 @@ impl LaneSwitcher {
             self.mode = Mode::ClearingRowEnd;
             return;
         }
-        // Once the detector has seen where the canopy ends, the line is carried to it without rows.
-        self.blind_m = if saw_rows || self.row_end.is_some() { 0.0 } else { self.blind_m + travelled };
+        // Close to a row end the detector has seen, the last plants have left the scan: rows missing or
+        // lost there are expected, and the line is carried to the end. Anywhere else they stop the robot.
+        let end_near = self.row_end.is_some_and(|end| -along(&end, odom) <= self.cfg.end_approach_m);
+        if !end_near && detection.is_some_and(|d| d.status == RowStatus::Lost) {
+            self.mode = Mode::Stopped { reason: StopReason::RowsLost };
+            return;
+        }
+        self.blind_m = if saw_rows || end_near { 0.0 } else { self.blind_m + travelled };
         if self.blind_m > self.cfg.max_blind_distance_m {
             self.mode = Mode::Stopped { reason: StopReason::NoRows };
         }
