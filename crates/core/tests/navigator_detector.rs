@@ -119,8 +119,16 @@ fn stops_past_the_row_end_inside_the_headland() {
 
 #[test]
 fn switches_to_the_next_lane_with_the_real_detector() {
-    // Rows end at x = 8 m; the robot turns right into the lane centred at y = −1.5 m and follows it back.
-    let field = Field { row_end_x_m: Some(8.0), ..Field::young_corn() };
+    switch_lane(Field { row_end_x_m: Some(8.0), ..Field::young_corn() }, "young corn");
+}
+
+#[test]
+fn switches_to_the_next_lane_under_a_closed_canopy() {
+    switch_lane(Field { row_end_x_m: Some(8.0), ..Field::grown_closed() }, "closed canopy");
+}
+
+/// Rows end at x = 8 m; the robot turns right into the lane centred at y = −1.5 m and follows it back.
+fn switch_lane(field: Field, name: &str) {
     let cfg = NavigatorConfig {
         lane_switch: LaneSwitchConfig { lanes: 2, ..LaneSwitchConfig::default() },
         ..NavigatorConfig::default()
@@ -148,7 +156,7 @@ fn switches_to_the_next_lane_with_the_real_detector() {
     let pose = rig.pose;
     let sw = rig.nav.lane_switcher();
     eprintln!(
-        "real detector, lane switch: modes {modes:?}, excursion {:.3} m, contacts {contacts}, final {pose:?}",
+        "real detector, lane switch, {name}: modes {modes:?}, excursion {:.3} m, contacts {contacts}, final {pose:?}",
         sw.max_excursion_m()
     );
     assert_eq!((sw.mode(), sw.lane(), sw.lanes_completed()), (Mode::Following, 1, 1), "modes {modes:?}");
