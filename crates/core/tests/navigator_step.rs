@@ -10,10 +10,11 @@ use croprow_core::{Mount, Point3, Pose2, RowStatus, Scan, Twist2};
 
 #[test]
 fn config_round_trips_through_toml_with_per_stage_sections() {
-    let text = "[mpc]\nhorizon_steps = 30\n\n[lane_switch]\nlanes = 3\nfirst_turn = \"left\"\n";
+    let text = "[mpc]\nhorizon_steps = 30\n\n[lane_switch]\nlanes = 3\nfirst_turn = \"left\"\n\n[ekf]\nmax_gap_s = 1.0\n";
     let cfg: NavigatorConfig = toml::from_str(text).unwrap();
     assert_eq!(cfg.mpc.horizon_steps, 30);
     assert_eq!(cfg.lane_switch.lanes, 3);
+    assert_eq!(cfg.ekf.max_gap_s, 1.0);
     let back: NavigatorConfig = toml::from_str(&toml::to_string(&cfg).unwrap()).unwrap();
     assert_eq!(back, cfg);
     assert!(toml::from_str::<NavigatorConfig>("[mpc]\nhorizon = 3\n").is_err(), "unknown fields are refused");
