@@ -16,6 +16,8 @@ mod rng;
 
 pub use config::{DetectorConfig, DetectorMode};
 pub use detector::RowDetector;
+#[doc(hidden)]
+pub use detector::Stage;
 
 use crate::geometry::Point3;
 

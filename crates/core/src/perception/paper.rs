@@ -11,8 +11,13 @@ use super::rng::Rng;
 
 /// Fewest points for a K-means cluster to count as a row centroid (a lone return is noise).
 const MIN_CLUSTER_POINTS: u32 = 3;
+/// Fewest map centroids for a lateral group to count as a row.
+const MIN_ROW_CENTROIDS: usize = 3;
 /// Most depth bins handled (the config's range over its bin width is capped to this).
 const MAX_BINS: usize = 64;
+
+/// A lateral range `(y_min, y_max)` of map centroids, m in `base_link`.
+type Span = (f64, f64);
 
 /// One K-means cluster: running sums and its centre.
 #[derive(Debug, Clone, Copy, Default)]
@@ -68,7 +73,7 @@ impl Paper {
     /// `base_link`.
     pub(crate) fn step(
         &mut self,
-        canopy: &[[f32; 2]],
+        canopy: &[[f32; 3]],
         sensor_x_m: f64,
         odom: &Pose2,
         config: &DetectorConfig,
@@ -84,10 +89,26 @@ impl Paper {
         }
     }
 
-    /// Counting-sorts the canopy by depth bin, then runs K-means and the lateral merge in each bin.
-    fn cluster_bins(
+    /// The row selection and RANSAC stage alone, for the per-stage benchmark; returns the rows found.
+    pub(crate) fn fit_stage(
         &mut self,
-        canopy: &[[f32; 2]],
+        odom: &Pose2,
+        config: &DetectorConfig,
+        map: &CentroidMap,
+        centroids: &mut Vec<[f64; 2]>,
+    ) -> usize {
+        self.collect_window(odom, config, map, centroids);
+        let (left, right) = self.first_rows(config);
+        let l = left.and_then(|g| self.fit_row(g, config)).is_some();
+        let r = right.and_then(|g| self.fit_row(g, config)).is_some();
+        usize::from(l) + usize::from(r)
+    }
+
+    /// Counting-sorts the canopy by depth bin, then runs K-means and the lateral merge in each bin
+    /// (also the K-means stage of the per-stage benchmark).
+    pub(crate) fn cluster_bins(
+        &mut self,
+        canopy: &[[f32; 3]],
         sensor_x_m: f64,
         odom: &Pose2,
         config: &DetectorConfig,
@@ -96,7 +117,7 @@ impl Paper {
         let bin_m = config.depth_bin_m as f32;
         let n_bins = ((config.max_depth_m / config.depth_bin_m).ceil() as usize).clamp(1, MAX_BINS);
         let sx = sensor_x_m as f32;
-        let bin_of = |p: &[f32; 2]| {
+        let bin_of = |p: &[f32; 3]| {
             let d = (p[0] - sx) / bin_m;
             if d >= 0.0 && d < n_bins as f32 { Some(d as usize) } else { None }
         };
@@ -122,7 +143,7 @@ impl Paper {
                 && let Some(cur) = self.dist2.get_mut(b)
             {
                 if let Some(slot) = self.sorted.get_mut(*cur as usize) {
-                    *slot = *p;
+                    *slot = [p[0], p[1]];
                 }
                 *cur += 1.0;
             }
@@ -246,28 +267,31 @@ impl Paper {
         }
     }
 
-    /// Groups window centroids by lateral position (gaps wider than the merge distance split rows)
-    /// and returns the y-ranges of the first group left and the first group right.
-    fn first_rows(&mut self, config: &DetectorConfig) -> (Option<(f64, f64)>, Option<(f64, f64)>) {
+    /// Groups window centroids by lateral position (gaps wider than the merge distance, and the robot's
+    /// own centre line, split groups) and returns the y-ranges of the first group left and the first
+    /// group right with at least `MIN_ROW_CENTROIDS` members (fewer is clutter, not a row).
+    fn first_rows(&mut self, config: &DetectorConfig) -> (Option<Span>, Option<Span>) {
         self.order.clear();
         self.order.extend(0..self.window.len());
         let w = &self.window;
         self.order.sort_unstable_by(|&a, &b| w[a][1].total_cmp(&w[b][1]));
+        let y = |k: usize| w[self.order[k]][1];
         let (mut left, mut right) = (None, None);
         let mut start = 0;
         while start < self.order.len() {
             let mut end = start + 1;
             while end < self.order.len()
-                && w[self.order[end]][1] - w[self.order[end - 1]][1] < config.merge_distance_m
+                && y(end) - y(end - 1) < config.merge_distance_m
+                && (y(end) >= 0.0) == (y(start) >= 0.0)
             {
                 end += 1;
             }
-            let (lo, hi) = (w[self.order[start]][1], w[self.order[end - 1]][1]);
-            let mean = self.order[start..end].iter().map(|&i| w[i][1]).sum::<f64>() / (end - start) as f64;
-            if mean < 0.0 {
-                right = Some((lo, hi));
-            } else if left.is_none() {
-                left = Some((lo, hi));
+            if end - start >= MIN_ROW_CENTROIDS {
+                if y(start) < 0.0 {
+                    right = Some((y(start), y(end - 1)));
+                } else if left.is_none() {
+                    left = Some((y(start), y(end - 1)));
+                }
             }
             start = end;
         }
@@ -275,7 +299,7 @@ impl Paper {
     }
 
     /// RANSAC (seeded) then a least-squares refit on the inliers, for the centroids with y in `range`.
-    fn fit_row(&mut self, range: (f64, f64), config: &DetectorConfig) -> Option<RowEstimate> {
+    fn fit_row(&mut self, range: Span, config: &DetectorConfig) -> Option<RowEstimate> {
         self.row.clear();
         self.row.extend(self.window.iter().filter(|p| p[1] >= range.0 && p[1] <= range.1));
         let n = self.row.len();
@@ -364,8 +388,8 @@ mod tests {
         for i in 0..300 {
             let x = 1.0 + 0.01 * i as f32;
             for dy in [-0.05f32, 0.0, 0.05] {
-                canopy.push([x, 0.375 + dy]);
-                canopy.push([x, -0.375 + dy]);
+                canopy.push([x, 0.375 + dy, 0.1]);
+                canopy.push([x, -0.375 + dy, 0.1]);
             }
         }
         let mut paper = Paper::new(&cfg);

@@ -54,8 +54,8 @@ pub(crate) enum PlaneRule {
 pub(crate) struct Preprocessor {
     /// Cropped points in `base_link`, m: ground and canopy.
     pub(crate) cropped: Vec<[f32; 3]>,
-    /// Canopy points `(x, y)` in `base_link`, m.
-    pub(crate) canopy: Vec<[f32; 2]>,
+    /// Canopy points `(x, y, h)` in `base_link`, m, with `h` the height above the plane.
+    pub(crate) canopy: Vec<[f32; 3]>,
     /// Height of the plane used on the last scan, m in `base_link`.
     pub(crate) plane_z_m: f32,
     z_hist: Vec<u32>,
@@ -118,7 +118,7 @@ impl Preprocessor {
         };
         self.plane_z_m = base + config.plane_raise_m as f32;
         let plane = self.plane_z_m;
-        self.canopy.extend(self.cropped.iter().filter(|p| p[2] > plane).map(|p| [p[0], p[1]]));
+        self.canopy.extend(self.cropped.iter().filter(|p| p[2] > plane).map(|p| [p[0], p[1], p[2] - plane]));
         finite
     }
 

@@ -169,6 +169,9 @@ pub struct Lidar {
     pub azimuth_step_deg: f64,
     pub range_sigma_m: f64,
     pub max_range_m: f64,
+    /// Organised cloud: a NaN point for every ray without a return (16 × 1800 points per scan), as
+    /// Velodyne drivers publish it with `organize_cloud`.
+    pub organized: bool,
     rng: ChaCha8Rng,
 }
 
@@ -178,12 +181,13 @@ impl Lidar {
             azimuth_step_deg: 0.2,
             range_sigma_m: 0.03,
             max_range_m: 8.0,
+            organized: false,
             rng: ChaCha8Rng::seed_from_u64(seed),
         }
     }
 
     /// One revolution from the robot at `pose` (world = odom), in the sensor frame. Rays that miss give
-    /// no point (a Velodyne drops them).
+    /// no point, or a NaN point in an organised cloud.
     pub fn scan(&mut self, field: &Field, pose: &Pose2, mount: &Mount) -> Vec<Point3> {
         let robot = Isometry3::from_parts(
             Translation3::new(pose.x, pose.y, 0.0),
@@ -204,6 +208,8 @@ impl Lidar {
                 if let Some(r) = cast(field, &origin, &d, top, self.max_range_m) {
                     let r = r + noise.sample(&mut self.rng);
                     out.push(Point3::new((d_s.x * r) as f32, (d_s.y * r) as f32, (d_s.z * r) as f32));
+                } else if self.organized {
+                    out.push(Point3::new(f32::NAN, f32::NAN, f32::NAN));
                 }
             }
         }
