@@ -4,3 +4,12 @@
 //! an Amiga-like skid-steer robot with noisy wheel odometry and IMU, ground truth and metrics, and the
 //! paper's experiments as scenarios. It calls `croprow-core` only through its public facade.
 #![warn(missing_docs)]
+
+pub mod field;
+pub mod lidar;
+mod scene;
+pub mod terrain;
+
+pub use field::{Crop, Field, FieldConfig, Stage, Stem};
+pub use lidar::{BodyPose, Lidar, LidarConfig, ScanBuffer};
+pub use scene::Class;
