@@ -13,3 +13,10 @@ pub mod terrain;
 pub use field::{Crop, Field, FieldConfig, Stage, Stem};
 pub use lidar::{BodyPose, Lidar, LidarConfig, ScanBuffer};
 pub use scene::Class;
+pub mod metrics;
+pub mod robot;
+pub mod sensors;
+
+pub use metrics::{CropDamage, CrossTrack, DetectionErrors, ErrorStats, RowError};
+pub use robot::{Robot, RobotConfig, StepError};
+pub use sensors::{ImuSample, SensorConfig, Sensors, WheelOdometry};
