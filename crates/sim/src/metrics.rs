@@ -44,15 +44,27 @@ pub struct DetectionErrors {
     pub right: Option<RowError>,
 }
 
-/// The first true rows left and right of a robot at `pose`: `(row, offset_m, heading_rad)` in `base_link`.
-pub fn neighbour_rows(field: &Field, pose: &Pose2) -> (Option<(u32, f64, f64)>, Option<(u32, f64, f64)>) {
-    let (mut left, mut right): (Option<(u32, f64, f64)>, Option<(u32, f64, f64)>) = (None, None);
+/// A true row as seen from the robot.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrueRow {
+    /// Row index.
+    pub row: u32,
+    /// Where its centre curve crosses the `base_link` y axis, m (left positive).
+    pub offset_m: f64,
+    /// Its direction there, relative to the robot's x axis, rad.
+    pub heading_rad: f64,
+}
+
+/// The first true rows `(left, right)` of a robot at `pose`.
+pub fn neighbour_rows(field: &Field, pose: &Pose2) -> (Option<TrueRow>, Option<TrueRow>) {
+    let (mut left, mut right): (Option<TrueRow>, Option<TrueRow>) = (None, None);
     for row in 0..field.config().rows {
-        let Some((off, hd)) = field.row_in_base(row, pose) else { continue };
-        if off > 0.0 && left.is_none_or(|l| off < l.1) {
-            left = Some((row, off, hd));
-        } else if off <= 0.0 && right.is_none_or(|r| off > r.1) {
-            right = Some((row, off, hd));
+        let Some((offset_m, heading_rad)) = field.row_in_base(row, pose) else { continue };
+        let t = TrueRow { row, offset_m, heading_rad };
+        if offset_m > 0.0 && left.is_none_or(|l| offset_m < l.offset_m) {
+            left = Some(t);
+        } else if offset_m <= 0.0 && right.is_none_or(|r| offset_m > r.offset_m) {
+            right = Some(t);
         }
     }
     (left, right)
@@ -90,8 +102,8 @@ pub fn row_error(field: &Field, pose: &Pose2, row: u32, est: &RowEstimate) -> Op
 pub fn score_detection(field: &Field, pose: &Pose2, detection: &Detection) -> DetectionErrors {
     let (l, r) = neighbour_rows(field, pose);
     DetectionErrors {
-        left: l.zip(detection.left.as_ref()).and_then(|((row, ..), e)| row_error(field, pose, row, e)),
-        right: r.zip(detection.right.as_ref()).and_then(|((row, ..), e)| row_error(field, pose, row, e)),
+        left: l.zip(detection.left.as_ref()).and_then(|(t, e)| row_error(field, pose, t.row, e)),
+        right: r.zip(detection.right.as_ref()).and_then(|(t, e)| row_error(field, pose, t.row, e)),
     }
 }
 
@@ -224,11 +236,11 @@ impl CropDamage {
                     let (bx, by) = pose.inverse_transform_point(s.x_m, s.y_m);
                     if (bx - wx).abs() <= half_len && (by - wy).abs() <= half_w {
                         let id = row_offsets[r as usize] + i;
-                        if let Some(h) = self.hit.get_mut(id) {
-                            if !*h {
-                                *h = true;
-                                new += 1;
-                            }
+                        if let Some(h) = self.hit.get_mut(id)
+                            && !*h
+                        {
+                            *h = true;
+                            new += 1;
                         }
                     }
                 }
@@ -276,7 +288,7 @@ mod tests {
         let f = straight();
         let pose = Pose2::new(5.0, 5.625, 0.1);
         let (l, r) = neighbour_rows(&f, &pose);
-        assert_eq!((l.unwrap().0, r.unwrap().0), (8, 7));
+        assert_eq!((l.unwrap().row, r.unwrap().row), (8, 7));
         let d = Detection {
             left: Some(est([0.0, 0.375 / 0.1f64.cos(), 1.0, 0.375 / 0.1f64.cos() - 0.1f64.tan()])),
             ..Detection::empty(0.0, RowStatus::Tracking)

@@ -206,6 +206,11 @@ impl Robot {
         self.config.wheel_positions().map(|(x, y)| self.pose.transform_point(x, y))
     }
 
+    /// Puts the robot down on the terrain at its current planar pose (z, roll, pitch).
+    pub(crate) fn settle(&mut self, field: &Field) {
+        self.body = terrain_body(field, self.pose);
+    }
+
     /// Advances the robot by `dt_s` under command `cmd`. The terrain of `field` sets z, roll and pitch.
     pub fn step(&mut self, cmd: Twist2, dt_s: f64, field: &Field) -> Result<(), StepError> {
         if !cmd.is_finite() {

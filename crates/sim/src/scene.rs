@@ -293,10 +293,10 @@ impl Scene {
                 g_hi = g_hi.min(a.max(b));
             }
         }
-        if g_lo < g_hi {
-            if let Some(hit) = self.traverse(o, d, g_lo, g_hi) {
-                return Some(hit);
-            }
+        if g_lo < g_hi
+            && let Some(hit) = self.traverse(o, d, g_lo, g_hi)
+        {
+            return Some(hit);
         }
         // Outside the grid there is only ground.
         self.ground_outside(o, d, t_lo, t_hi).map(|t| (t, Class::Ground))
@@ -329,11 +329,11 @@ impl Scene {
             // The lowest point of the ray within the cell is at one of its ends.
             let z_low = (o[2] + t_enter * d[2]).min(o[2] + t_exit * d[2]);
             if z_low <= self.max_z[c] {
-                if let Some(tg) = self.ground_in(o, d, t_enter, t_exit) {
-                    if tg < best {
-                        best = tg;
-                        best_class = Class::Ground;
-                    }
+                if let Some(tg) = self.ground_in(o, d, t_enter, t_exit)
+                    && tg < best
+                {
+                    best = tg;
+                    best_class = Class::Ground;
                 }
                 let (a, b) = (self.start[c] as usize, self.start[c + 1] as usize);
                 for &k in &self.idx[a..b] {
