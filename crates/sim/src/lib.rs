@@ -24,8 +24,9 @@
 //! let mut driver = world.driver().unwrap();
 //! for _ in 0..20 {
 //!     let cmd = driver.command(world.time_s(), &world.robot().pose(), world.field());
-//!     let step = world.step(cmd).unwrap();
-//!     let ct = metrics::cross_track(world.field(), world.lane(), &step.truth.pose).unwrap();
+//!     // A step borrows the world (its scan points are the world's buffer): copy out what outlives it.
+//!     let pose = world.step(cmd).unwrap().truth.pose;
+//!     let ct = metrics::cross_track(world.field(), world.lane(), &pose).unwrap();
 //!     assert!(ct.lateral_m.abs() < 0.2);
 //! }
 //! ```
