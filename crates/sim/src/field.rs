@@ -386,13 +386,13 @@ impl Shape {
                 Self { organs: (5, 7), reach_m: (0.18, 0.30), leaf_m: 0.05, stalk_r_m: 0.008 }
             }
             (Crop::Corn, Stage::Grown) => {
-                Self { organs: (9, 12), reach_m: (0.45, 0.70), leaf_m: 0.08, stalk_r_m: 0.013 }
+                Self { organs: (11, 14), reach_m: (0.45, 0.70), leaf_m: 0.10, stalk_r_m: 0.013 }
             }
             (Crop::Soybean, Stage::Young) => {
                 Self { organs: (4, 6), reach_m: (0.10, 0.16), leaf_m: 0.035, stalk_r_m: 0.004 }
             }
             (Crop::Soybean, Stage::Grown) => {
-                Self { organs: (10, 14), reach_m: (0.34, 0.44), leaf_m: 0.055, stalk_r_m: 0.006 }
+                Self { organs: (11, 15), reach_m: (0.36, 0.46), leaf_m: 0.06, stalk_r_m: 0.006 }
             }
         }
     }
@@ -402,7 +402,8 @@ impl Shape {
 fn corn(s: &Shape, base: [f64; 3], h: f64, rng: &mut ChaCha8Rng, out: &mut Vec<Prim>) {
     out.push(Prim::cylinder(base[0], base[1], s.stalk_r_m, base[2], base[2] + 0.8 * h, Class::Crop));
     let n = rng.random_range(s.organs.0..=s.organs.1);
-    let plane = rng.random_range(0.0..PI);
+    // Field corn tends to turn its leaves across the row, towards the light of the inter-row.
+    let plane = 0.5 * PI + rng.random_range(-0.8..0.8);
     for i in 0..n {
         let f = (i as f64 + 0.5) / n as f64;
         // Middle leaves are the longest; upper ones are short and steep.
