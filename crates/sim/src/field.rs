@@ -26,7 +26,7 @@ use crate::scene::{Class, Prim, Scene};
 use crate::terrain::Relief;
 
 /// Cell edge of the ray-casting grid, m: about one leaf wide, so a cell holds a few dozen primitives.
-const CELL_M: f64 = 0.25;
+const CELL_M: f64 = 0.125;
 /// Weeds keep this far from a row centre, m ("between the rows").
 const WEED_ROW_CLEARANCE_M: f64 = 0.12;
 /// Weed clump height range, m (issue 3).

@@ -165,6 +165,16 @@ impl Prim {
     }
 }
 
+/// A primitive listed in a cell, with its height range so that a ray passing above or below it within
+/// the cell skips it without loading the primitive. Grazing rays (a VLP-16's side beams drop a few
+/// centimetres per metre) cross many cells but meet few primitives at their height.
+#[derive(Debug, Clone, Copy)]
+struct Ref {
+    z_min: f32,
+    z_max: f32,
+    prim: u32,
+}
+
 /// The scene: primitives, the grid over them, and the terrain.
 #[derive(Debug, Clone)]
 pub(crate) struct Scene {
@@ -180,16 +190,17 @@ pub(crate) struct Scene {
     ny: i32,
     /// Per cell: highest point of any primitive or of the ground in the cell, m.
     max_z: Vec<f32>,
-    /// CSR: primitives of cell `c` are `idx[start[c]..start[c + 1]]`.
+    /// CSR: primitives of cell `c` are `refs[start[c]..start[c + 1]]`.
     start: Vec<u32>,
-    idx: Vec<u32>,
+    refs: Vec<Ref>,
     /// Highest and lowest point of the whole scene, m.
     top_z: f32,
     bottom_z: f32,
 }
 
 impl Scene {
-    /// Bins `prims` into a grid of `cell_m` cells covering `[x_min, x_max] × [y_min, y_max]`.
+    /// Bins `prims` into a grid of `cell_m` cells covering `[x_min, x_max] × [y_min, y_max]`, which must
+    /// contain every primitive: outside the grid the caster sees only ground.
     pub fn build(
         prims: Vec<Prim>,
         relief: Relief,
@@ -241,20 +252,21 @@ impl Scene {
         }
         let start = count;
         let mut fill = start.clone();
-        let mut idx = vec![0u32; start[n_cells] as usize];
+        let mut refs = vec![Ref { z_min: 0.0, z_max: 0.0, prim: 0 }; start[n_cells] as usize];
         for (k, b) in bounds.iter().enumerate() {
             let (i0, i1, j0, j1) = range(b);
             for j in j0..=j1 {
                 for i in i0..=i1 {
                     let c = (j * nx + i) as usize;
-                    idx[fill[c] as usize] = k as u32;
+                    // 1 mm of slack: a flat leaf has z_min == z_max and the ray's f32 height must not miss it.
+                    refs[fill[c] as usize] = Ref { z_min: b[2] - 1e-3, z_max: b[5] + 1e-3, prim: k as u32 };
                     fill[c] += 1;
                 }
             }
         }
         let top_z = max_z.iter().copied().fold(relief.amplitude_m() as f32, f32::max) + 0.01;
         let bottom_z = -(relief.amplitude_m() as f32) - 0.01;
-        Self { prims, relief, x0, y0, cell_m: cell, inv_cell, nx, ny, max_z, start, idx, top_z, bottom_z }
+        Self { prims, relief, x0, y0, cell_m: cell, inv_cell, nx, ny, max_z, start, refs, top_z, bottom_z }
     }
 
     /// Number of primitives.
@@ -327,7 +339,8 @@ impl Scene {
             let t_exit = t_next_x.min(t_next_y).min(t1);
             let c = (j * self.nx + i) as usize;
             // The lowest point of the ray within the cell is at one of its ends.
-            let z_low = (o[2] + t_enter * d[2]).min(o[2] + t_exit * d[2]);
+            let (za, zb) = (o[2] + t_enter * d[2], o[2] + t_exit * d[2]);
+            let (z_low, z_high) = (za.min(zb), za.max(zb));
             if z_low <= self.max_z[c] {
                 if let Some(tg) = self.ground_in(o, d, t_enter, t_exit)
                     && tg < best
@@ -336,8 +349,11 @@ impl Scene {
                     best_class = Class::Ground;
                 }
                 let (a, b) = (self.start[c] as usize, self.start[c + 1] as usize);
-                for &k in &self.idx[a..b] {
-                    let p = &self.prims[k as usize];
+                for r in &self.refs[a..b] {
+                    if r.z_min > z_high || r.z_max < z_low {
+                        continue;
+                    }
+                    let p = &self.prims[r.prim as usize];
                     if let Some(t) = p.intersect(o, d, 0.0, best) {
                         best = t;
                         best_class = p.class;
@@ -516,7 +532,8 @@ mod tests {
             // Make w exactly perpendicular to u.
             prims.push(Prim::patch(o, u, [w[0], w[1], 0.0], rng.random_bool(0.5), Class::Crop));
         }
-        let s = Scene::build(prims.clone(), flat(), 0.0, 10.0, -2.0, 2.0, 0.25);
+        // The grid must contain every primitive (the field leaves its headlands around them).
+        let s = Scene::build(prims.clone(), flat(), -1.0, 11.0, -3.0, 3.0, 0.25);
         for _ in 0..2000 {
             let o = [rng.random_range(-1.0..11.0f32), rng.random_range(-3.0..3.0f32), 1.5];
             let mut d = [
