@@ -175,6 +175,14 @@ struct Ref {
     prim: u32,
 }
 
+/// One grid cell's summary.
+#[derive(Debug, Clone, Copy)]
+struct CellInfo {
+    /// Highest point of any primitive or of the ground in the cell, m.
+    max_z: f32,
+    start: u32,
+}
+
 /// The scene: primitives, the grid over them, and the terrain.
 #[derive(Debug, Clone)]
 pub(crate) struct Scene {
@@ -188,10 +196,10 @@ pub(crate) struct Scene {
     inv_cell: f32,
     nx: i32,
     ny: i32,
-    /// Per cell: highest point of any primitive or of the ground in the cell, m.
-    max_z: Vec<f32>,
-    /// CSR: primitives of cell `c` are `refs[start[c]..start[c + 1]]`.
-    start: Vec<u32>,
+    /// Per cell (plus one sentinel): height bound and first primitive reference. Both in one array so a
+    /// visited cell costs one cache line.
+    cells: Vec<CellInfo>,
+    /// CSR: primitives of cell `c` are `refs[cells[c].start..cells[c + 1].start]`.
     refs: Vec<Ref>,
     /// Highest and lowest point of the whole scene, m.
     top_z: f32,
@@ -264,9 +272,18 @@ impl Scene {
                 }
             }
         }
+        // Lowest first: a ray meets a cell's primitives only up to the first one that starts above it.
+        for c in 0..n_cells {
+            if let Some(cell) = refs.get_mut(start[c] as usize..start[c + 1] as usize) {
+                cell.sort_unstable_by(|a, b| a.z_min.total_cmp(&b.z_min).then(a.prim.cmp(&b.prim)));
+            }
+        }
         let top_z = max_z.iter().copied().fold(relief.amplitude_m() as f32, f32::max) + 0.01;
         let bottom_z = -(relief.amplitude_m() as f32) - 0.01;
-        Self { prims, relief, x0, y0, cell_m: cell, inv_cell, nx, ny, max_z, start, refs, top_z, bottom_z }
+        let cells = (0..=n_cells)
+            .map(|c| CellInfo { max_z: max_z.get(c).copied().unwrap_or(0.0), start: start[c] })
+            .collect();
+        Self { prims, relief, x0, y0, cell_m: cell, inv_cell, nx, ny, cells, refs, top_z, bottom_z }
     }
 
     /// Number of primitives.
@@ -341,16 +358,20 @@ impl Scene {
             // The lowest point of the ray within the cell is at one of its ends.
             let (za, zb) = (o[2] + t_enter * d[2], o[2] + t_exit * d[2]);
             let (z_low, z_high) = (za.min(zb), za.max(zb));
-            if z_low <= self.max_z[c] {
+            let (info, next) = (self.cells[c], self.cells[c + 1]);
+            if z_low <= info.max_z {
                 if let Some(tg) = self.ground_in(o, d, t_enter, t_exit)
                     && tg < best
                 {
                     best = tg;
                     best_class = Class::Ground;
                 }
-                let (a, b) = (self.start[c] as usize, self.start[c + 1] as usize);
+                let (a, b) = (info.start as usize, next.start as usize);
                 for r in &self.refs[a..b] {
-                    if r.z_min > z_high || r.z_max < z_low {
+                    if r.z_min > z_high {
+                        break;
+                    }
+                    if r.z_max < z_low {
                         continue;
                     }
                     let p = &self.prims[r.prim as usize];
