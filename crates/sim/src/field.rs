@@ -30,6 +30,10 @@ use crate::terrain::Relief;
 const CELL_M: f64 = 0.2;
 /// Weeds keep this far from a row centre, m ("between the rows").
 const WEED_ROW_CLEARANCE_M: f64 = 0.12;
+/// Most plants a field may hold (the paper's 200 m x 16-row soybean field has 40 000).
+const MAX_PLANTS: f64 = 200_000.0;
+/// Most weed clumps a field may hold.
+const MAX_WEEDS: f64 = 200_000.0;
 /// Weed clump height range, m (issue 3).
 const WEED_HEIGHT_M: (f64, f64) = (0.01, 0.08);
 /// Weed clump width range, m (issue 3).
@@ -152,6 +156,27 @@ impl FieldConfig {
         check_range("field.curve_amplitude_m", self.curve_amplitude_m, 0.0, 50.0)?;
         check_range("field.curve_wavelength_m", self.curve_wavelength_m, 5.0, 10_000.0)?;
         check_range("field.headland_m", self.headland_m, 0.0, 100.0)?;
+        // The scene lives in memory (~50 bytes per primitive, ~40 primitives per plant): refuse fields
+        // that would need gigabytes rather than fail allocating.
+        let plants = self.rows as f64 * self.length_m / self.plant_spacing_m;
+        if plants > MAX_PLANTS {
+            return Err(ConfigError::invalid(
+                "field.plant_spacing_m",
+                format!(
+                    "{plants:.0} plants exceed the simulator's limit of {MAX_PLANTS}: shorten or thin the field"
+                ),
+            ));
+        }
+        let area_m2 = self.rows as f64 * self.row_spacing_m * self.length_m;
+        if self.weeds_per_m2 * area_m2 > MAX_WEEDS {
+            return Err(ConfigError::invalid(
+                "field.weeds_per_m2",
+                format!(
+                    "{:.0} weed clumps exceed the simulator's limit of {MAX_WEEDS}",
+                    self.weeds_per_m2 * area_m2
+                ),
+            ));
+        }
         // Rows steeper than 45° would no longer run "along x": refuse rather than simulate nonsense.
         if self.curve_amplitude_m * TAU / self.curve_wavelength_m > 1.0 {
             return Err(ConfigError::invalid(
@@ -534,6 +559,7 @@ mod tests {
             (FieldConfig { gap_min_m: 3.0, gap_max_m: 1.0, ..FieldConfig::default() }, "field.gap_max_m"),
             (FieldConfig { length_m: f64::NAN, ..FieldConfig::default() }, "field.length_m"),
             (FieldConfig { curve_amplitude_m: 30.0, ..FieldConfig::default() }, "field.curve_amplitude_m"),
+            (FieldConfig { rows: 200, length_m: 2000.0, ..FieldConfig::default() }, "field.plant_spacing_m"),
         ] {
             let e = Field::generate(&c, 0).unwrap_err().to_string();
             assert!(e.contains(name), "{e}");
