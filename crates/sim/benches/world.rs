@@ -6,7 +6,8 @@
 //!
 //! Measured 2026-11-22 on the shared 2-core build machine (load average ~9, the process got 44 % of a
 //! core): young corn 8.6 ms, grown corn 21.6 ms per 0.1 s simulated (wall), i.e. a real-time factor of
-//! ~12x and ~4.6x wall, ~26x and ~10x CPU-normalised. The LiDAR is >90 % of the cost.
+//! ~12x and ~4.6x wall, ~26x and ~10x CPU-normalised. The ray casting dominates: one revolution alone
+//! costs about as much on the lidar bench.
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use croprow_sim::{Scenario, World};
