@@ -189,6 +189,8 @@ impl ErrorStats {
 #[derive(Debug, Clone)]
 pub struct CropDamage {
     hit: Vec<bool>,
+    /// Index of each row's first stem in `Field::stems`.
+    row_offsets: Vec<usize>,
     count: usize,
     last: Option<Pose2>,
 }
@@ -196,7 +198,15 @@ pub struct CropDamage {
 impl CropDamage {
     /// A counter for `field` with no contact yet.
     pub fn new(field: &Field) -> Self {
-        Self { hit: vec![false; field.stems().len()], count: 0, last: None }
+        let mut offset = 0;
+        let row_offsets = (0..field.config().rows)
+            .map(|r| {
+                let o = offset;
+                offset += field.row_stems(r).len();
+                o
+            })
+            .collect();
+        Self { hit: vec![false; field.stems().len()], row_offsets, count: 0, last: None }
     }
 
     /// Plants contacted so far.
@@ -217,12 +227,6 @@ impl CropDamage {
         let spacing = field.config().row_spacing_m;
         let rows = field.config().rows as i64;
         let mut new = 0;
-        let mut offset = 0;
-        let mut row_offsets = Vec::with_capacity(rows as usize);
-        for r in 0..rows {
-            row_offsets.push(offset);
-            offset += field.row_stems(r as u32).len();
-        }
         for (wx, wy) in robot.wheel_positions() {
             let (cx, cy) = pose.transform_point(wx, wy);
             let k = ((cy - field.row_y(0, cx)) / spacing).round() as i64;
@@ -235,7 +239,7 @@ impl CropDamage {
                     }
                     let (bx, by) = pose.inverse_transform_point(s.x_m, s.y_m);
                     if (bx - wx).abs() <= half_len && (by - wy).abs() <= half_w {
-                        let id = row_offsets[r as usize] + i;
+                        let id = self.row_offsets.get(r as usize).map_or(usize::MAX, |o| o + i);
                         if let Some(h) = self.hit.get_mut(id)
                             && !*h
                         {
