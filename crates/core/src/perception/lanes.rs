@@ -36,6 +36,8 @@ const ROUND_BIAS: f64 = 1024.0;
 /// since the last set: at rest it would otherwise fill with copies of one view.
 const KEYFRAME_M: f64 = 0.15;
 const KEYFRAME_RAD: f64 = 0.035;
+/// Distance driven after which a map centroid's weight has halved, m (odometry drift ages it).
+const AGE_SCALE_M: f64 = 3.0;
 /// Rows tracked: j in `J_MIN..J_MIN + ROWS` (four each side).
 const J_MIN: i32 = -4;
 const ROWS: usize = 8;
@@ -177,6 +179,9 @@ pub(crate) struct Lanes {
     current: Vec<[f64; 3]>,
     /// Pose of the last centroids stored in the map.
     last_key: Option<Pose2>,
+    /// Distance driven (odometry), m, and the pose it was last updated at.
+    odometer_m: f64,
+    last_pose: Option<Pose2>,
     /// Row end in `odom`: point on the lane centre and the row direction, rad.
     end: Option<[f64; 3]>,
 }
@@ -196,6 +201,8 @@ impl Lanes {
             local: Vec::with_capacity(config.map_capacity + ROWS * x_bins),
             current: Vec::with_capacity(ROWS * x_bins),
             last_key: None,
+            odometer_m: 0.0,
+            last_pose: None,
             end: None,
         }
     }
@@ -203,6 +210,7 @@ impl Lanes {
     pub(crate) fn reset(&mut self) {
         self.model = None;
         self.last_key = None;
+        self.last_pose = None;
         self.end = None;
         self.last_update_s = f64::NEG_INFINITY;
     }
@@ -219,6 +227,10 @@ impl Lanes {
         centroids: &mut Vec<[f64; 2]>,
     ) -> LaneOutput {
         centroids.clear();
+        if let Some(p) = self.last_pose {
+            self.odometer_m += (odom.x - p.x).hypot(odom.y - p.y);
+        }
+        self.last_pose = Some(*odom);
         if self.model.is_some() && t_s - self.last_update_s > config.lost_after_s {
             self.model = None;
             self.last_key = None;
@@ -435,7 +447,7 @@ impl Lanes {
         });
         if keyframe {
             for c in &self.current {
-                map.push(odom, c[0], c[1], c[2]);
+                map.push(odom, c[0], c[1], c[2], self.odometer_m);
             }
             self.last_key = Some(*odom);
         }
@@ -464,7 +476,9 @@ impl Lanes {
             let (dx, dy) = (p[0] - odom.x, p[1] - odom.y);
             let x = cos * dx + sin * dy;
             if x >= -config.behind_m && x < view_start {
-                self.local.push([x, cos * dy - sin * dx, p[2]]);
+                // Odometry drift grows with the distance driven since the centroid was stored.
+                let age = (self.odometer_m - p[3]) / AGE_SCALE_M;
+                self.local.push([x, cos * dy - sin * dx, p[2] / (1.0 + age * age)]);
             }
         }
         let mut lane = *predicted;

@@ -225,7 +225,7 @@ impl Paper {
         let mut acc: Option<Cluster> = None;
         let flush = |c: Cluster, map: &mut CentroidMap| {
             if c.n >= MIN_CLUSTER_POINTS {
-                map.push(odom, c.sx / c.n as f64, c.sy / c.n as f64, c.n as f64);
+                map.push(odom, c.sx / c.n as f64, c.sy / c.n as f64, c.n as f64, 0.0);
             }
         };
         for c in &self.clusters {
