@@ -18,9 +18,11 @@
 pub mod control;
 pub mod error;
 pub mod geometry;
+pub mod mapping;
 pub mod odometry;
 pub mod perception;
 
 pub use error::ConfigError;
 pub use geometry::{Mount, Point3, Pose2, Twist2};
+pub use mapping::RowMap;
 pub use perception::{Detection, RowEstimate, RowStatus, Scan};
