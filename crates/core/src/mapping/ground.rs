@@ -201,7 +201,8 @@ mod tests {
     #[test]
     fn empty_cells_are_filled_from_neighbours() {
         // Points only in the left half; the right half takes the known height.
-        let pts: Vec<[f64; 3]> = (0..50).flat_map(|i| (0..50).map(move |j| [i as f64 * 0.1, j as f64 * 0.1, 1.5])).collect();
+        let pts: Vec<[f64; 3]> =
+            (0..50).flat_map(|i| (0..50).map(move |j| [i as f64 * 0.1, j as f64 * 0.1, 1.5])).collect();
         let g = Ground::estimate(&pts, [10.0, 5.0], 1.0, 0.1);
         assert!((g.height_at(9.5, 2.5) - 1.5).abs() < 1e-9);
     }

@@ -67,7 +67,7 @@ pub struct Config {
     /// range noise of a survey scanner; seedlings of 5 cm still show).
     pub clearance_m: f64,
     /// Number of equal height bands of the vegetation tried as the slice (plus the whole), 1..=10.
-    /// Default 3.
+    /// Default 4.
     pub slice_bands: usize,
     /// A fixed height slice `[min, max]` above the ground, m, instead of the automatic choice.
     /// Default none (automatic).
@@ -110,7 +110,7 @@ impl Default for Config {
             ground_cell_m: 1.0,
             ground_percentile: 0.05,
             clearance_m: 0.03,
-            slice_bands: 3,
+            slice_bands: 4,
             height_slice_m: None,
             min_spacing_m: 0.25,
             max_spacing_m: 2.0,
@@ -301,8 +301,10 @@ impl Extractor {
                 best = Some((HeightSlice { min_m, max_m: max_m.min(top_m), periodicity }, tiles));
             }
         }
-        let (slice, tiles) = best.unwrap_or((HeightSlice { min_m: 0.0, max_m: 0.0, periodicity: 0.0 }, Vec::new()));
-        let mut good: Vec<Tile> = tiles.into_iter().filter(|t| t.pattern.periodicity >= cfg.min_periodicity).collect();
+        let (slice, tiles) =
+            best.unwrap_or((HeightSlice { min_m: 0.0, max_m: 0.0, periodicity: 0.0 }, Vec::new()));
+        let mut good: Vec<Tile> =
+            tiles.into_iter().filter(|t| t.pattern.periodicity >= cfg.min_periodicity).collect();
         if slice.periodicity < cfg.min_periodicity || good.is_empty() {
             return Err(MapError::NoRowPattern { periodicity: slice.periodicity, min: cfg.min_periodicity });
         }
@@ -330,7 +332,8 @@ impl Extractor {
             .into_iter()
             .enumerate()
             .map(|(index, t)| {
-                let polyline: Vec<[f64; 2]> = t.centres.iter().map(|c| [c[0] + origin[0], c[1] + origin[1]]).collect();
+                let polyline: Vec<[f64; 2]> =
+                    t.centres.iter().map(|c| [c[0] + origin[0], c[1] + origin[1]]).collect();
                 Row { index, length_m: polyline_length(&t.centres), polyline, support: t.support }
             })
             .collect();
@@ -381,7 +384,14 @@ impl Extractor {
     }
 
     /// Seeds rows on the comb of each periodic tile (most periodic first) and traces the new ones.
-    fn trace_rows(&self, index: &Index, params: Params, tiles: &[Tile], spacing_m: f64, extent: [f64; 2]) -> Vec<Trace> {
+    fn trace_rows(
+        &self,
+        index: &Index,
+        params: Params,
+        tiles: &[Tile],
+        spacing_m: f64,
+        extent: [f64; 2],
+    ) -> Vec<Trace> {
         let mut tracer = Tracer::new(index, params);
         let mut traces: Vec<Trace> = Vec::new();
         let half = self.config.tile_m / 2.0;
@@ -405,7 +415,8 @@ impl Extractor {
                 let a = offset + m as f64 * spacing_m;
                 let seed = [tile.centre[0] + normal[0] * a, tile.centre[1] + normal[1] * a];
                 let inside = seed[0] >= 0.0 && seed[1] >= 0.0 && seed[0] <= extent[0] && seed[1] <= extent[1];
-                if !inside || traces.iter().any(|t| distance_to_polyline(seed, &t.centres) < 0.5 * spacing_m) {
+                if !inside || traces.iter().any(|t| distance_to_polyline(seed, &t.centres) < 0.5 * spacing_m)
+                {
                     continue;
                 }
                 if let Some(t) = tracer.trace(seed, dir)
@@ -437,7 +448,12 @@ fn bounds(points: &[[f64; 3]]) -> Result<([f64; 3], [f64; 2]), MapError> {
 
 /// The horizontal positions of the points whose height above the ground is in `[min_m, max_m)`.
 fn slice_points(local: &[[f64; 3]], heights: &[f64], min_m: f64, max_m: f64) -> Vec<[f64; 2]> {
-    local.iter().zip(heights).filter(|(_, h)| (min_m..max_m).contains(*h)).map(|(p, _)| [p[0], p[1]]).collect()
+    local
+        .iter()
+        .zip(heights)
+        .filter(|(_, h)| (min_m..max_m).contains(*h))
+        .map(|(p, _)| [p[0], p[1]])
+        .collect()
 }
 
 fn median(values: &mut [f64]) -> Option<f64> {
@@ -450,7 +466,8 @@ fn median(values: &mut [f64]) -> Option<f64> {
 
 /// Weighted mean of axial directions (θ and θ + π are the same row), rad in [0, π).
 fn mean_axis(dirs: impl Iterator<Item = (f64, f64)>) -> f64 {
-    let (s, c) = dirs.fold((0.0, 0.0), |(s, c), (theta, w)| (s + w * (2.0 * theta).sin(), c + w * (2.0 * theta).cos()));
+    let (s, c) = dirs
+        .fold((0.0, 0.0), |(s, c), (theta, w)| (s + w * (2.0 * theta).sin(), c + w * (2.0 * theta).cos()));
     (s.atan2(c) / 2.0).rem_euclid(std::f64::consts::PI)
 }
 
@@ -484,12 +501,21 @@ fn distance_to_polyline(p: [f64; 2], line: &[[f64; 2]]) -> f64 {
     closest_on_polyline(p, line).0
 }
 
+/// Support per metre, relative to the median row's, below which a trace is weeds, not a row.
+const MIN_RELATIVE_SUPPORT: f64 = 0.3;
+
 /// Orders traces across the field, joins fragments of the same row, drops traces off the row comb,
 /// and smooths each polyline lightly.
 ///
 /// Across-field position is measured against the longest trace, so curved fields order correctly:
 /// every trace's key is the median of its offsets from that reference, taken across `axis`.
-fn assemble(mut traces: Vec<Trace>, axis: [f64; 2], spacing_m: f64, step_m: f64, min_length_m: f64) -> Vec<Trace> {
+fn assemble(
+    mut traces: Vec<Trace>,
+    axis: [f64; 2],
+    spacing_m: f64,
+    step_m: f64,
+    min_length_m: f64,
+) -> Vec<Trace> {
     let along = |p: &[f64; 2]| p[0] * axis[0] + p[1] * axis[1];
     let across = |p: &[f64; 2]| -p[0] * axis[1] + p[1] * axis[0];
     for t in &mut traces {
@@ -514,7 +540,8 @@ fn assemble(mut traces: Vec<Trace>, axis: [f64; 2], spacing_m: f64, step_m: f64,
     let mut keyed: Vec<(f64, Trace)> = traces
         .into_iter()
         .map(|t| {
-            let mut offsets: Vec<f64> = t.centres.iter().map(|p| across(p) - reference_across(along(p))).collect();
+            let mut offsets: Vec<f64> =
+                t.centres.iter().map(|p| across(p) - reference_across(along(p))).collect();
             (median(&mut offsets).unwrap_or(0.0), t)
         })
         .collect();
@@ -540,12 +567,18 @@ fn assemble(mut traces: Vec<Trace>, axis: [f64; 2], spacing_m: f64, step_m: f64,
             _ => rows.push((key, t)),
         }
     }
-    // Rows sit on a comb of the spacing; a trace between two teeth is a weed patch.
+    // Rows sit on a comb of the spacing; a trace between two teeth is a weed patch, and so is a trace
+    // on a tooth beyond the field whose support per metre is a fraction of a real row's.
     let reference_key = rows.iter().max_by_key(|(_, t)| t.support).map_or(0.0, |(k, _)| *k);
+    let density = |t: &Trace| t.support as f64 / polyline_length(&t.centres).max(step_m);
+    let mut densities: Vec<f64> = rows.iter().map(|(_, t)| density(t)).collect();
+    let typical = median(&mut densities).unwrap_or(0.0);
     rows.into_iter()
         .filter(|(key, t)| {
             let teeth = (key - reference_key) / spacing_m;
-            (teeth - teeth.round()).abs() < 0.25 && polyline_length(&t.centres) >= min_length_m
+            (teeth - teeth.round()).abs() < 0.25
+                && polyline_length(&t.centres) >= min_length_m
+                && density(t) >= MIN_RELATIVE_SUPPORT * typical
         })
         .map(|(_, mut t)| {
             smooth(&mut t.centres);
@@ -562,7 +595,10 @@ fn smooth(pts: &mut [[f64; 2]]) {
     }
     let orig = pts.to_vec();
     for (i, w) in orig.windows(3).enumerate() {
-        pts[i + 1] = [0.25 * w[0][0] + 0.5 * w[1][0] + 0.25 * w[2][0], 0.25 * w[0][1] + 0.5 * w[1][1] + 0.25 * w[2][1]];
+        pts[i + 1] = [
+            0.25 * w[0][0] + 0.5 * w[1][0] + 0.25 * w[2][0],
+            0.25 * w[0][1] + 0.5 * w[1][1] + 0.25 * w[2][1],
+        ];
     }
 }
 

@@ -38,8 +38,11 @@ pub(crate) struct Analyzer {
 /// the same peaks) never wins a tie.
 const HARMONIC_WEIGHTS: [f64; 3] = [1.0, 0.5, 0.33];
 
+/// A sub-multiple of the chosen frequency this coherent (relative) is the true row frequency.
+const SUBHARMONIC_RATIO: f64 = 0.5;
+
 /// Fewest occupied raster cells worth analysing.
-const MIN_CELLS: usize = 30;
+const MIN_CELLS: usize = 100;
 
 impl Analyzer {
     pub(crate) fn new(raster_m: f64, min_spacing_m: f64, max_spacing_m: f64) -> Self {
@@ -119,7 +122,7 @@ impl Analyzer {
         let k_lo = ((span_m / self.max_spacing_m).ceil() as usize).max(1);
         let k_hi = ((span_m / self.min_spacing_m).floor() as usize).min(n / 2 - 1);
         let share = |k: usize| self.power.get(k).copied().unwrap_or(0.0);
-        let (mut best_k, mut best_score) = (0, 0.0);
+        let (mut best_k, mut best_score) = (0usize, 0.0);
         for k in k_lo..=k_hi {
             let score: f64 = HARMONIC_WEIGHTS.iter().enumerate().map(|(h, w)| w * share(k * (h + 1))).sum();
             if score > best_score {
@@ -129,16 +132,33 @@ impl Analyzer {
         if best_k == 0 {
             return None;
         }
+        // A sharp comb (thin stalks) is as coherent at twice or three times its frequency as at its
+        // own, so the harmonic sum can tie; rows evenly spaced have no power at a sub-multiple of their
+        // frequency, so a strong one there means the rows are that much farther apart.
+        'octave: loop {
+            for divisor in [2, 3] {
+                let centre = (best_k as f64 / divisor as f64).round() as usize;
+                let sub = (centre.saturating_sub(1)..=centre + 1)
+                    .filter(|k| *k >= k_lo)
+                    .max_by(|a, b| share(*a).total_cmp(&share(*b)));
+                if let Some(k) = sub
+                    && k < best_k
+                    && share(k) >= SUBHARMONIC_RATIO * share(best_k)
+                {
+                    best_k = k;
+                    continue 'octave;
+                }
+            }
+            break;
+        }
         // Parabolic interpolation of the fundamental's peak refines the spacing between FFT bins.
         let (a, b, cc) = (share(best_k - 1), share(best_k), share(best_k + 1));
         let denom = a - 2.0 * b + cc;
         let shift = if denom.abs() > 1e-12 { (0.5 * (a - cc) / denom).clamp(-0.5, 0.5) } else { 0.0 };
-        let periodicity = share(best_k);
-        Some(Pattern {
-            direction_rad: theta,
-            spacing_m: span_m / (best_k as f64 + shift),
-            periodicity,
-        })
+        // The best of a few thousand (direction, frequency) pairs over M random cells reaches about
+        // 3/sqrt(M) by chance: report the coherence above that floor.
+        let periodicity = (share(best_k) - 3.0 / cells.sqrt()).max(0.0);
+        Some(Pattern { direction_rad: theta, spacing_m: span_m / (best_k as f64 + shift), periodicity })
     }
 }
 

@@ -124,7 +124,8 @@ impl<'a> Tracer<'a> {
         let p = self.params;
         self.offsets.clear();
         let offsets = &mut self.offsets;
-        self.index.for_each_in(centre, dir, p.window_m / 2.0, p.half_width_m, |_, across| offsets.push(across));
+        self.index
+            .for_each_in(centre, dir, p.window_m / 2.0, p.half_width_m, |_, across| offsets.push(across));
         let count = self.offsets.len();
         if count < p.min_points {
             return None;
@@ -134,8 +135,11 @@ impl<'a> Tracer<'a> {
         let mut c = *median;
         for shrink in [0.6, 0.4] {
             let half = p.half_width_m * shrink;
-            let (sum, n) =
-                self.offsets.iter().filter(|o| (*o - c).abs() <= half).fold((0.0, 0usize), |(s, n), o| (s + o, n + 1));
+            let (sum, n) = self
+                .offsets
+                .iter()
+                .filter(|o| (*o - c).abs() <= half)
+                .fold((0.0, 0usize), |(s, n), o| (s + o, n + 1));
             if n == 0 {
                 break;
             }
@@ -173,7 +177,10 @@ impl<'a> Tracer<'a> {
         let margin = p.window_m;
         loop {
             let next = [at[0] + dir[0] * p.step_m, at[1] + dir[1] * p.step_m];
-            if next[0] < -margin || next[1] < -margin || next[0] > p.extent_m[0] + margin || next[1] > p.extent_m[1] + margin
+            if next[0] < -margin
+                || next[1] < -margin
+                || next[0] > p.extent_m[0] + margin
+                || next[1] > p.extent_m[1] + margin
             {
                 break;
             }
@@ -231,7 +238,8 @@ mod tests {
 
     #[test]
     fn rectangle_query_sees_only_inside_points() {
-        let pts: Vec<[f64; 2]> = (0..100).flat_map(|i| (0..100).map(move |j| [i as f64 * 0.1, j as f64 * 0.1])).collect();
+        let pts: Vec<[f64; 2]> =
+            (0..100).flat_map(|i| (0..100).map(move |j| [i as f64 * 0.1, j as f64 * 0.1])).collect();
         let index = Index::new(&pts, [10.0, 10.0], 0.5);
         let d = std::f64::consts::FRAC_1_SQRT_2;
         let mut n = 0;
@@ -246,8 +254,11 @@ mod tests {
     #[test]
     fn trace_bridges_a_gap_and_stops_at_the_end() {
         // A straight row along x at y = 2 from x = 1 to 9 with a gap from 4 to 5.5 m.
-        let pts: Vec<[f64; 2]> =
-            (0..=80).map(|i| 1.0 + i as f64 * 0.1).filter(|x| !(4.0..5.5).contains(x)).map(|x| [x, 2.0]).collect();
+        let pts: Vec<[f64; 2]> = (0..=80)
+            .map(|i| 1.0 + i as f64 * 0.1)
+            .filter(|x| !(4.0..5.5).contains(x))
+            .map(|x| [x, 2.0])
+            .collect();
         let index = Index::new(&pts, [10.0, 4.0], 0.5);
         let mut tracer = Tracer::new(&index, params([10.0, 4.0]));
         let t = tracer.trace([5.8, 2.1], [1.0, 0.0]).unwrap();
