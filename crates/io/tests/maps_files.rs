@@ -37,7 +37,8 @@ fn field() -> Vec<[f64; 3]> {
     pts
 }
 
-const FILES: [&str; 6] = ["field.pcd", "field_ascii.pcd", "field.ply", "field_be.ply", "field_ascii.ply", "field.txt"];
+const FILES: [&str; 6] =
+    ["field.pcd", "field_ascii.pcd", "field.ply", "field_be.ply", "field_ascii.ply", "field.txt"];
 
 #[test]
 #[ignore = "rewrites the committed files; run by hand after changing field()"]
@@ -129,9 +130,19 @@ fn truncated_files_are_refused() {
 
 #[test]
 fn corrupt_headers_are_refused() {
-    assert!(error_of("bad.ply", b"ply\nformat binary_middle_endian 1.0\nend_header\n").contains("unknown format"));
-    assert!(error_of("novertex.ply", b"ply\nformat ascii 1.0\nelement face 0\nend_header\n").contains("vertex"));
-    assert!(error_of("noz.ply", b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nend_header\n1 2\n").contains("`z`"));
+    assert!(
+        error_of("bad.ply", b"ply\nformat binary_middle_endian 1.0\nend_header\n").contains("unknown format")
+    );
+    assert!(
+        error_of("novertex.ply", b"ply\nformat ascii 1.0\nelement face 0\nend_header\n").contains("vertex")
+    );
+    assert!(
+        error_of(
+            "noz.ply",
+            b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nend_header\n1 2\n"
+        )
+        .contains("`z`")
+    );
     error_of("garbage.pcd", b"this is not a pcd file\n");
     error_of("garbage.las", &[0u8; 400]);
     assert!(error_of("short.txt", b"1 2 3\n4 5\n").contains("line 2"));

@@ -3,7 +3,6 @@
 
 use std::path::Path;
 
-
 use super::Error;
 
 /// Points read per chunk.
@@ -41,7 +40,8 @@ pub(crate) fn write(path: &Path, points: &[[f64; 3]]) -> Result<(), Error> {
     let t = |o: f64| ::las::Transform { scale: 0.001, offset: o.round() };
     builder.transforms = ::las::Vector { x: t(origin[0]), y: t(origin[1]), z: t(origin[2]) };
     let header = builder.into_header().map_err(|e| Error::invalid(path, format!("LAS header: {e}")))?;
-    let mut writer = ::las::Writer::from_path(path, header).map_err(|e| Error::invalid(path, format!("LAS: {e}")))?;
+    let mut writer =
+        ::las::Writer::from_path(path, header).map_err(|e| Error::invalid(path, format!("LAS: {e}")))?;
     for p in points {
         let point = ::las::Point { x: p[0], y: p[1], z: p[2], ..Default::default() };
         writer.write_point(point).map_err(|e| Error::invalid(path, format!("LAS: {e}")))?;

@@ -19,11 +19,17 @@ pub(crate) fn read(path: &Path) -> Result<Vec<[f64; 3]>, Error> {
     let (ix, iy, iz) = (column("x")?, column("y")?, column("z")?);
     let mut points = Vec::new();
     for record in reader {
-        let DynRecord(values) = record.map_err(|e| Error::invalid(path, format!("PCD point {}: {e}", points.len())))?;
+        let DynRecord(values) =
+            record.map_err(|e| Error::invalid(path, format!("PCD point {}: {e}", points.len())))?;
         let get = |i: usize| values.get(i).and_then(scalar);
         match (get(ix), get(iy), get(iz)) {
             (Some(x), Some(y), Some(z)) => points.push([x, y, z]),
-            _ => return Err(Error::invalid(path, format!("PCD point {}: x, y, z are not scalars", points.len()))),
+            _ => {
+                return Err(Error::invalid(
+                    path,
+                    format!("PCD point {}: x, y, z are not scalars", points.len()),
+                ));
+            }
         }
     }
     Ok(points)
@@ -46,7 +52,8 @@ fn scalar(field: &Field) -> Option<f64> {
 }
 
 pub(crate) fn write(path: &Path, points: &[[f64; 3]], data_kind: DataKind) -> Result<(), Error> {
-    let schema = Schema::from_iter([("x", ValueKind::F64, 1), ("y", ValueKind::F64, 1), ("z", ValueKind::F64, 1)]);
+    let schema =
+        Schema::from_iter([("x", ValueKind::F64, 1), ("y", ValueKind::F64, 1), ("z", ValueKind::F64, 1)]);
     let init = WriterInit {
         width: points.len() as u64,
         height: 1,
@@ -58,7 +65,9 @@ pub(crate) fn write(path: &Path, points: &[[f64; 3]], data_kind: DataKind) -> Re
     let fail = |e: ::pcd_rs::Error| Error::invalid(path, format!("PCD: {e}"));
     let mut writer: DynWriter<_> = init.create(path).map_err(fail)?;
     for p in points {
-        writer.push(&DynRecord(vec![Field::F64(vec![p[0]]), Field::F64(vec![p[1]]), Field::F64(vec![p[2]])])).map_err(fail)?;
+        writer
+            .push(&DynRecord(vec![Field::F64(vec![p[0]]), Field::F64(vec![p[1]]), Field::F64(vec![p[2]])]))
+            .map_err(fail)?;
     }
     writer.finish().map_err(fail)
 }

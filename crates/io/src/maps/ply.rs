@@ -99,7 +99,8 @@ struct Header {
 
 fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header, Error> {
     let bad = |problem: String| Error::invalid(path, format!("PLY header: {problem}"));
-    let end = find(bytes, b"end_header").ok_or_else(|| bad("no `end_header` (not a PLY file, or truncated)".into()))?;
+    let end = find(bytes, b"end_header")
+        .ok_or_else(|| bad("no `end_header` (not a PLY file, or truncated)".into()))?;
     let mut data_start = end + b"end_header".len();
     // The header ends with a newline (`\n`, or `\r\n` from some writers).
     if bytes.get(data_start) == Some(&b'\r') {
@@ -135,7 +136,11 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header, Error> {
             ["property", "list", count, item, _name] => {
                 let count = Scalar::parse(count).ok_or_else(|| at("unknown list count type"))?;
                 let item = Scalar::parse(item).ok_or_else(|| at("unknown list item type"))?;
-                elements.last_mut().ok_or_else(|| at("property before any element"))?.properties.push(Property::List { count, item });
+                elements
+                    .last_mut()
+                    .ok_or_else(|| at("property before any element"))?
+                    .properties
+                    .push(Property::List { count, item });
             }
             ["property", kind, name] => {
                 let kind = Scalar::parse(kind).ok_or_else(|| at("unknown property type"))?;
@@ -170,7 +175,9 @@ pub(crate) fn read(path: &Path) -> Result<Vec<[f64; 3]>, Error> {
             .properties
             .iter()
             .position(|p| matches!(p, Property::Scalar { name: n, .. } if n == name))
-            .ok_or_else(|| Error::invalid(path, format!("PLY header: the vertex element has no `{name}` property")))
+            .ok_or_else(|| {
+                Error::invalid(path, format!("PLY header: the vertex element has no `{name}` property"))
+            })
     };
     let xyz = [column("x")?, column("y")?, column("z")?];
     match header.encoding {
@@ -180,7 +187,13 @@ pub(crate) fn read(path: &Path) -> Result<Vec<[f64; 3]>, Error> {
 }
 
 /// Reads the elements up to and including the vertices (the last of `elements`); returns the vertices.
-fn read_binary(path: &Path, data: &[u8], elements: &[Element], xyz: [usize; 3], big: bool) -> Result<Vec<[f64; 3]>, Error> {
+fn read_binary(
+    path: &Path,
+    data: &[u8],
+    elements: &[Element],
+    xyz: [usize; 3],
+    big: bool,
+) -> Result<Vec<[f64; 3]>, Error> {
     let mut at = 0usize;
     let truncated = |what: &str, i: usize| Error::invalid(path, format!("PLY data truncated in {what} {i}"));
     let mut take = |n: usize| -> Option<&[u8]> {
@@ -208,7 +221,10 @@ fn read_binary(path: &Path, data: &[u8], elements: &[Element], xyz: [usize; 3], 
                         let b = take(count.size()).ok_or_else(|| truncated(&element.name, i))?;
                         let n = count.decode(b, big);
                         if !(0.0..=1e6).contains(&n) {
-                            return Err(Error::invalid(path, format!("PLY {} {i}: list length {n}", element.name)));
+                            return Err(Error::invalid(
+                                path,
+                                format!("PLY {} {i}: list length {n}", element.name),
+                            ));
                         }
                         take(n as usize * item.size()).ok_or_else(|| truncated(&element.name, i))?;
                         values.push(f64::NAN);
@@ -223,14 +239,21 @@ fn read_binary(path: &Path, data: &[u8], elements: &[Element], xyz: [usize; 3], 
     Ok(points)
 }
 
-fn read_ascii(path: &Path, data: &[u8], elements: &[Element], xyz: [usize; 3]) -> Result<Vec<[f64; 3]>, Error> {
+fn read_ascii(
+    path: &Path,
+    data: &[u8],
+    elements: &[Element],
+    xyz: [usize; 3],
+) -> Result<Vec<[f64; 3]>, Error> {
     let text = std::str::from_utf8(data).map_err(|_| Error::invalid(path, "PLY ascii data is not text"))?;
     let mut lines = text.lines().filter(|l| !l.trim().is_empty());
     let mut points = Vec::new();
     for (e, element) in elements.iter().enumerate() {
         let is_vertex = e + 1 == elements.len();
         for i in 0..element.count {
-            let line = lines.next().ok_or_else(|| Error::invalid(path, format!("PLY data truncated in {} {i}", element.name)))?;
+            let line = lines
+                .next()
+                .ok_or_else(|| Error::invalid(path, format!("PLY data truncated in {} {i}", element.name)))?;
             let tokens: Vec<&str> = line.split_whitespace().collect();
             if !is_vertex {
                 continue;
@@ -238,11 +261,12 @@ fn read_ascii(path: &Path, data: &[u8], elements: &[Element], xyz: [usize; 3]) -
             let mut values = Vec::with_capacity(element.properties.len());
             let mut t = 0;
             for property in &element.properties {
-                let token = *tokens
-                    .get(t)
-                    .ok_or_else(|| Error::invalid(path, format!("PLY vertex {i}: too few values on `{line}`")))?;
-                let v: f64 =
-                    token.parse().map_err(|_| Error::invalid(path, format!("PLY vertex {i}: `{token}` is not a number")))?;
+                let token = *tokens.get(t).ok_or_else(|| {
+                    Error::invalid(path, format!("PLY vertex {i}: too few values on `{line}`"))
+                })?;
+                let v: f64 = token.parse().map_err(|_| {
+                    Error::invalid(path, format!("PLY vertex {i}: `{token}` is not a number"))
+                })?;
                 match property {
                     Property::Scalar { .. } => t += 1,
                     Property::List { .. } => t += 1 + v.max(0.0) as usize,
@@ -264,7 +288,11 @@ pub(crate) fn write(path: &Path, points: &[[f64; 3]], encoding: Encoding) -> Res
         Encoding::BinaryBigEndian => "binary_big_endian",
     };
     let mut go = || -> std::io::Result<()> {
-        write!(out, "ply\nformat {format} 1.0\ncomment written by croprow\nelement vertex {}\n", points.len())?;
+        write!(
+            out,
+            "ply\nformat {format} 1.0\ncomment written by croprow\nelement vertex {}\n",
+            points.len()
+        )?;
         write!(out, "property double x\nproperty double y\nproperty double z\nend_header\n")?;
         for p in points {
             match encoding {
