@@ -52,6 +52,7 @@ impl Ground {
             scratch.extend(order[start[c]..start[c + 1]].iter().map(|&i| xyz[i][2]));
             ground.z_m[c] = percentile_of(&mut scratch, percentile).unwrap_or(f64::NAN);
         }
+        ground.drop_raised_cells();
         ground.fill_holes();
         ground.smooth();
 
@@ -67,7 +68,11 @@ impl Ground {
                 .iter()
                 .filter(|r| (low..=low + SOIL_BAND_M).contains(*r))
                 .fold((0.0, 0usize), |(s, n), r| (s + r, n + 1));
-            correction.z_m[c] = sum / n.max(1) as f64;
+            let dz = sum / n.max(1) as f64;
+            // The correction is a bias of centimetres; a large one is a cell without soil.
+            if dz.abs() <= MAX_GROUND_STEP_M / 2.0 {
+                correction.z_m[c] = dz;
+            }
         }
         correction.fill_holes();
         correction.smooth();
@@ -77,23 +82,47 @@ impl Ground {
         ground
     }
 
-    /// Height of the ground at a local `(x, y)`, m: bilinear between cell centres, extrapolated
-    /// linearly over the outer half cells so a slope does not flatten at the field's edge.
+    /// Height of the ground at a local `(x, y)`, m: bilinear between cell centres, flat over the outer
+    /// half cells (extrapolating a slope from edge cells, which see the least soil, proved worse).
     pub(crate) fn height_at(&self, x: f64, y: f64) -> f64 {
-        let axis = |v: f64, n: usize| -> (usize, usize, f64) {
-            if n == 1 {
-                return (0, 0, 0.0);
-            }
-            let f = (v / self.cell_m - 0.5).clamp(-0.5, n as f64 - 0.5);
-            let i = (f.floor().max(0.0) as usize).min(n - 2);
-            (i, i + 1, f - i as f64)
-        };
-        let (ix, ix1, tx) = axis(x, self.nx);
-        let (iy, iy1, ty) = axis(y, self.ny);
+        let fx = (x / self.cell_m - 0.5).clamp(0.0, (self.nx - 1) as f64);
+        let fy = (y / self.cell_m - 0.5).clamp(0.0, (self.ny - 1) as f64);
+        let (ix, iy) = (fx.floor() as usize, fy.floor() as usize);
+        let (ix1, iy1) = ((ix + 1).min(self.nx - 1), (iy + 1).min(self.ny - 1));
+        let (tx, ty) = (fx - ix as f64, fy - iy as f64);
         let at = |i: usize, j: usize| self.z_m[j * self.nx + i];
         let low = at(ix, iy) * (1.0 - tx) + at(ix1, iy) * tx;
         let high = at(ix, iy1) * (1.0 - tx) + at(ix1, iy1) * tx;
         low * (1.0 - ty) + high * ty
+    }
+
+    /// Forgets cells far above most of their neighbours: a cell that saw only canopy (no soil through
+    /// it) would lift the ground, and every plant above it would vanish below the clearance.
+    fn drop_raised_cells(&mut self) {
+        let mut raised = Vec::new();
+        let mut around = Vec::with_capacity(8);
+        for iy in 0..self.ny {
+            for ix in 0..self.nx {
+                let own = self.z_m[iy * self.nx + ix];
+                around.clear();
+                for jy in iy.saturating_sub(1)..=(iy + 1).min(self.ny - 1) {
+                    for jx in ix.saturating_sub(1)..=(ix + 1).min(self.nx - 1) {
+                        let z = self.z_m[jy * self.nx + jx];
+                        if (jx, jy) != (ix, iy) && !z.is_nan() {
+                            around.push(z);
+                        }
+                    }
+                }
+                if let Some(median) = percentile_of(&mut around, 0.5)
+                    && own - median > MAX_GROUND_STEP_M
+                {
+                    raised.push(iy * self.nx + ix);
+                }
+            }
+        }
+        for c in raised {
+            self.z_m[c] = f64::NAN;
+        }
     }
 
     /// Empty cells take the mean of their known neighbours, growing inwards until none is left.
@@ -128,11 +157,12 @@ impl Ground {
         }
     }
 
-    /// One pass of a 3x3 mean, which removes the cell-to-cell jitter of the percentile.
+    /// One pass of a 3x3 mean, which removes the cell-to-cell jitter of the percentile. Edge cells
+    /// keep their value: a one-sided mean would bend a slope at the field's border.
     fn smooth(&mut self) {
         let mut next = self.z_m.clone();
-        for iy in 0..self.ny {
-            for ix in 0..self.nx {
+        for iy in 1..self.ny.saturating_sub(1) {
+            for ix in 1..self.nx.saturating_sub(1) {
                 let own = self.z_m[iy * self.nx + ix];
                 let n = self.neighbour_mean(ix, iy).unwrap_or(own);
                 next[iy * self.nx + ix] = (own + 8.0 * n) / 9.0;
@@ -160,6 +190,10 @@ impl Ground {
 /// Thickness of the soil layer above the low percentile, m: thicker than a survey scanner's range
 /// noise, thinner than any crop's bulk.
 const SOIL_BAND_M: f64 = 0.05;
+
+/// Largest rise of a cell's ground above the median of its neighbours, m: steeper than any field
+/// (a 15 % slope over a 1 m cell), lower than any crop that closes its canopy.
+const MAX_GROUND_STEP_M: f64 = 0.15;
 
 /// The `q`-quantile of `values` (reordered), or `None` when empty.
 fn percentile_of(values: &mut [f64], q: f64) -> Option<f64> {
@@ -196,6 +230,21 @@ mod tests {
             let err = g.height_at(x, y) - 0.05 * x;
             assert!(err.abs() < 0.005, "ground error {err} at ({x}, {y})");
         }
+    }
+
+    #[test]
+    fn a_cell_that_sees_only_canopy_is_not_ground() {
+        // Flat soil at z = 0 except one cell holding only a 1.5 m canopy.
+        let mut pts = Vec::new();
+        for i in 0..60 {
+            for j in 0..60 {
+                let (x, y) = (i as f64 * 0.1 + 0.05, j as f64 * 0.1 + 0.05);
+                let z = if (3.0..4.0).contains(&x) && (3.0..4.0).contains(&y) { 1.5 } else { 0.0 };
+                pts.push([x, y, z]);
+            }
+        }
+        let g = Ground::estimate(&pts, [6.0, 6.0], 1.0, 0.05);
+        assert!(g.height_at(3.5, 3.5).abs() < 1e-9, "{}", g.height_at(3.5, 3.5));
     }
 
     #[test]

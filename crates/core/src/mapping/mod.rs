@@ -26,11 +26,11 @@
 //!
 //! ```
 //! use croprow_core::mapping::{Config, Extractor};
-//! // Three rows along x, 0.75 m apart, on flat ground.
+//! // Three rows along x, 0.75 m apart, 0.2 m tall, on flat ground, 1 km from the origin.
 //! let mut cloud = Vec::new();
 //! for i in 0..400 {
-//!     for j in 0..40 {
-//!         let (x, y) = (i as f64 * 0.025, j as f64 * 0.05 - 0.5);
+//!     for j in 0..60 {
+//!         let (x, y) = (i as f64 * 0.025, j as f64 * 0.05 - 0.75);
 //!         cloud.push([x + 1000.0, y, 0.0]);
 //!     }
 //!     for row in 0..3 {
@@ -414,7 +414,10 @@ impl Extractor {
             for m in -reach..=reach {
                 let a = offset + m as f64 * spacing_m;
                 let seed = [tile.centre[0] + normal[0] * a, tile.centre[1] + normal[1] * a];
-                let inside = seed[0] >= 0.0 && seed[1] >= 0.0 && seed[0] <= extent[0] && seed[1] <= extent[1];
+                // Rows can lie on the very edge of the cloud: seeds up to half a spacing out are tried.
+                let margin = spacing_m / 2.0;
+                let inside = (-margin..=extent[0] + margin).contains(&seed[0])
+                    && (-margin..=extent[1] + margin).contains(&seed[1]);
                 if !inside || traces.iter().any(|t| distance_to_polyline(seed, &t.centres) < 0.5 * spacing_m)
                 {
                     continue;
