@@ -150,6 +150,24 @@ fn corrupt_headers_are_refused() {
 }
 
 #[test]
+fn ply_counts_that_lie_are_refused_without_allocating_for_them() {
+    let mut bytes =
+        b"ply\nformat binary_big_endian 1.0\nelement vertex 4000000000\nproperty float x\nproperty float y\n\
+property float z\nend_header\n"
+            .to_vec();
+    bytes.extend([1.0f32, 2.0, 3.0].iter().flat_map(|v| v.to_be_bytes()));
+    assert!(error_of("liar.ply", &bytes).contains("truncated in vertex 1"));
+    // An element without properties takes no bytes, whatever its count.
+    let mut ok = b"ply\nformat binary_little_endian 1.0\nelement marker 999999999999\nelement vertex 1\n\
+property float x\nproperty float y\nproperty float z\nend_header\n"
+        .to_vec();
+    ok.extend([1.0f32, 2.0, 3.0].iter().flat_map(|v| v.to_le_bytes()));
+    let path = scratch("marker.ply");
+    std::fs::write(&path, ok).unwrap();
+    assert_eq!(maps::read_cloud(&path).unwrap(), vec![[1.0, 2.0, 3.0]]);
+}
+
+#[test]
 fn nan_rows_are_refused() {
     assert!(error_of("nan.txt", b"1 2 3\nnan 2 3\n").contains("point 1"));
     let path = scratch("nan.ply");

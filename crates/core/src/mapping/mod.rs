@@ -97,8 +97,8 @@ pub struct Config {
     /// Least periodicity (coherence of the occupancy with the row comb, [0, 1]; about 1/sqrt(cells) for
     /// no pattern) for a tile to count as rows. Default 0.15.
     pub min_periodicity: f64,
-    /// Largest horizontal extent of a cloud, m. Default 5000 (refuses mixed-up coordinate systems
-    /// before allocating grids for them).
+    /// Largest horizontal extent of a cloud, m. Default 2000 (a large farm field; refuses mixed-up
+    /// coordinate systems before allocating grids for them).
     pub max_extent_m: f64,
     /// Fewest points in a cloud. Default 100.
     pub min_points: usize,
@@ -123,7 +123,7 @@ impl Default for Config {
             min_segment_points: 4,
             min_row_length_m: 1.0,
             min_periodicity: 0.15,
-            max_extent_m: 5000.0,
+            max_extent_m: 2000.0,
             min_points: 100,
         }
     }
@@ -314,7 +314,9 @@ impl Extractor {
         let direction_rad = mean_axis(good.iter().map(|t| (t.pattern.direction_rad, t.pattern.periodicity)));
 
         let xy = slice_points(&local, &heights, slice.min_m, slice.max_m + 1e-6);
-        let index = Index::new(&xy, extent, cfg.window_m.max(0.5));
+        // At most ~2048 buckets a side keeps the index small on a large field.
+        let bucket_m = cfg.window_m.max(0.5).max(extent[0].max(extent[1]) / 2048.0);
+        let index = Index::new(&xy, extent, bucket_m);
         let params = Params {
             step_m: cfg.step_m,
             window_m: cfg.window_m,
@@ -401,14 +403,11 @@ impl Extractor {
             // Phase of the row comb in this tile: the argument of the profile's Fourier coefficient
             // at the row frequency.
             let (mut re, mut im) = (0.0, 0.0);
-            for p in index.points() {
-                let (dx, dy) = (p[0] - tile.centre[0], p[1] - tile.centre[1]);
-                if dx.abs() <= half && dy.abs() <= half {
-                    let phase = std::f64::consts::TAU * (normal[0] * dx + normal[1] * dy) / spacing_m;
-                    re += phase.cos();
-                    im += phase.sin();
-                }
-            }
+            index.for_each_in(tile.centre, dir, half, half, |_, across| {
+                let phase = std::f64::consts::TAU * across / spacing_m;
+                re += phase.cos();
+                im += phase.sin();
+            });
             let offset = im.atan2(re) / std::f64::consts::TAU * spacing_m;
             let reach = (half * std::f64::consts::SQRT_2 / spacing_m).ceil() as i64;
             for m in -reach..=reach {

@@ -79,11 +79,6 @@ impl Index {
             }
         }
     }
-
-    /// All bucketed points, in bucket order.
-    pub(crate) fn points(&self) -> &[[f64; 2]] {
-        &self.xy
-    }
 }
 
 /// Tracing parameters, in metres, derived from the config and the estimated spacing.

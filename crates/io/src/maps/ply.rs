@@ -209,6 +209,9 @@ fn read_binary(
             // Each vertex takes at least one byte: a count beyond the data is a lie, not an allocation.
             points.reserve(element.count.min(data.len()));
         }
+        if element.properties.is_empty() {
+            continue;
+        }
         for i in 0..element.count {
             values.clear();
             for property in &element.properties {
@@ -250,6 +253,9 @@ fn read_ascii(
     let mut points = Vec::new();
     for (e, element) in elements.iter().enumerate() {
         let is_vertex = e + 1 == elements.len();
+        if element.properties.is_empty() {
+            continue;
+        }
         for i in 0..element.count {
             let line = lines
                 .next()
