@@ -21,6 +21,9 @@ fn check(field: &Field) -> RowMap {
         field.spacing_m
     );
     let scores = field.score(&map);
+    for r in &map.rows {
+        eprintln!("{} {} {:.1} {:?}", r.index, r.support, r.length_m, r.polyline);
+    }
     for (i, (r, rms)) in scores.iter().enumerate() {
         assert!(*rms < 0.03, "row {i} (true {r}) RMS {rms:.4} m");
     }
@@ -70,6 +73,17 @@ fn tall_closed_canopy_maize_is_found_by_its_stalks() {
     let map = check(&Field { angle_rad: 1.2, ..Field::new(4, Crop::Maize) });
     // The stalks, not the canopy: the chosen slice starts near the ground.
     assert!(map.slice.min_m < 0.5 && map.slice.max_m < 1.5, "{:?}", map.slice);
+}
+
+#[test]
+fn wide_rows_of_open_canopy_bushes() {
+    check(&Field {
+        spacing_m: 1.5,
+        rows: 6,
+        angle_rad: -1.0,
+        weeds_per_m2: 0.3,
+        ..Field::new(8, Crop::Bush)
+    });
 }
 
 #[test]

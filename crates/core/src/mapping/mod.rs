@@ -410,15 +410,26 @@ impl Extractor {
             });
             let offset = im.atan2(re) / std::f64::consts::TAU * spacing_m;
             let reach = (half * std::f64::consts::SQRT_2 / spacing_m).ceil() as i64;
-            for m in -reach..=reach {
-                let a = offset + m as f64 * spacing_m;
-                let seed = [tile.centre[0] + normal[0] * a, tile.centre[1] + normal[1] * a];
-                // Rows can lie on the very edge of the cloud: seeds up to half a spacing out are tried.
-                let margin = spacing_m / 2.0;
-                let inside = (-margin..=extent[0] + margin).contains(&seed[0])
-                    && (-margin..=extent[1] + margin).contains(&seed[1]);
-                if !inside || traces.iter().any(|t| distance_to_polyline(seed, &t.centres) < 0.5 * spacing_m)
-                {
+            // Rows can lie on the very edge of the cloud: seeds up to half a spacing out are tried.
+            let margin = spacing_m / 2.0;
+            let mut seeds: Vec<([f64; 2], usize)> = (-reach..=reach)
+                .map(|m| {
+                    let a = offset + m as f64 * spacing_m;
+                    [tile.centre[0] + normal[0] * a, tile.centre[1] + normal[1] * a]
+                })
+                .filter(|s| {
+                    (-margin..=extent[0] + margin).contains(&s[0])
+                        && (-margin..=extent[1] + margin).contains(&s[1])
+                })
+                .filter_map(|s| tracer.measure(s, dir).map(|(_, n)| (s, n)))
+                .collect();
+            // A tooth of the comb beyond the field's last row sees only weeds: far less support than
+            // the teeth on rows.
+            let mut supports: Vec<f64> = seeds.iter().map(|(_, n)| *n as f64).collect();
+            let typical = median(&mut supports).unwrap_or(0.0);
+            seeds.retain(|(_, n)| *n as f64 >= MIN_RELATIVE_SUPPORT * typical);
+            for (seed, _) in seeds {
+                if traces.iter().any(|t| distance_to_polyline(seed, &t.centres) < 0.5 * spacing_m) {
                     continue;
                 }
                 if let Some(t) = tracer.trace(seed, dir)

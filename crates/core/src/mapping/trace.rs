@@ -101,6 +101,13 @@ pub(crate) struct Trace {
     pub support: usize,
 }
 
+/// A window with less than this share of the trace's typical support is treated as a gap.
+const WEED_SUPPORT_RATIO: f64 = 0.3;
+
+/// A centre more than this share of the half-width off the prediction is treated as a gap: rows bend
+/// by millimetres per step, a weed beside the row pulls by decimetres.
+const MAX_JUMP_FRACTION: f64 = 0.5;
+
 /// Traces rows through an [`Index`], reusing one scratch buffer.
 #[derive(Debug)]
 pub(crate) struct Tracer<'a> {
@@ -170,6 +177,9 @@ impl<'a> Tracer<'a> {
         let mut pending: Vec<[f64; 2]> = Vec::new();
         let mut support = 0;
         let margin = p.window_m;
+        // Running mean of the supported windows' point counts: a window far below it inside a gap
+        // holds a weed, not the row.
+        let mut typical: Option<f64> = None;
         loop {
             let next = [at[0] + dir[0] * p.step_m, at[1] + dir[1] * p.step_m];
             if next[0] < -margin
@@ -179,8 +189,13 @@ impl<'a> Tracer<'a> {
             {
                 break;
             }
-            match self.measure(next, dir) {
+            let reading = self.measure(next, dir).filter(|&(off, n)| {
+                let enough = typical.is_none_or(|t| n as f64 >= WEED_SUPPORT_RATIO * t);
+                enough && off.abs() <= MAX_JUMP_FRACTION * p.half_width_m
+            });
+            match reading {
                 Some((off, n)) => {
+                    typical = Some(typical.map_or(n as f64, |t| 0.8 * t + 0.2 * n as f64));
                     let moved = [next[0] - dir[1] * off, next[1] + dir[0] * off];
                     let last = kept.last().copied().unwrap_or(start);
                     let (dx, dy) = (moved[0] - last[0], moved[1] - last[1]);

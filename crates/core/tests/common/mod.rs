@@ -14,6 +14,8 @@ pub enum Crop {
     Seedling,
     /// 2-2.4 m tall, stalks plus leaves spreading ±0.45 m from 0.6 m up: the canopy closes.
     Maize,
+    /// 0.4-0.6 m tall bushes (soybean-like), an open canopy ±0.2 m wide at every height.
+    Bush,
 }
 
 #[derive(Debug, Clone)]
@@ -137,6 +139,14 @@ impl Field {
                     let h = rng.random_range(0.0..height);
                     let spread = 0.03 * h / height;
                     let (du, dv) = (rng.random_range(-spread..=spread), rng.random_range(-spread..=spread));
+                    put(du, dv, h);
+                }
+            }
+            Crop::Bush => {
+                let height = rng.random_range(0.4..0.6);
+                for _ in 0..40 * self.plant_points {
+                    let h = rng.random_range(0.05..height);
+                    let (du, dv) = (rng.random_range(-0.1..0.1), rng.random_range(-0.2..0.2));
                     put(du, dv, h);
                 }
             }
