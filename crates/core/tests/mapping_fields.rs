@@ -21,17 +21,17 @@ fn check(field: &Field) -> RowMap {
         field.spacing_m
     );
     let scores = field.score(&map);
-    for r in &map.rows {
-        eprintln!("{} {} {:.1} {:?}", r.index, r.support, r.length_m, r.polyline);
-    }
     for (i, (r, rms)) in scores.iter().enumerate() {
         assert!(*rms < 0.03, "row {i} (true {r}) RMS {rms:.4} m");
     }
     let worst = scores.iter().map(|(_, rms)| *rms).fold(0.0, f64::max);
     eprintln!(
-        "rows {} spacing error {:+.4} m worst row RMS {worst:.4} m",
+        "rows {} spacing error {:+.4} m worst row RMS {worst:.4} m slice {:.2}-{:.2} m periodicity {:.2}",
         map.rows.len(),
-        map.spacing_m - field.spacing_m
+        map.spacing_m - field.spacing_m,
+        map.slice.min_m,
+        map.slice.max_m,
+        map.slice.periodicity
     );
     let matched: Vec<usize> = scores.iter().map(|(r, _)| *r).collect();
     let ascending: Vec<usize> = (0..field.rows).collect();
