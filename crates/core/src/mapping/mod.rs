@@ -15,8 +15,9 @@
 //! 3. **Row pattern** (`spectrum`): per `tile_m` tile, the direction and spacing whose across-row
 //!    occupancy profile puts the largest share of its variance in one frequency and its harmonics.
 //!    Crop-agnostic: the spacing is estimated, never assumed.
-//! 4. **Tracing** (`trace`): seeds on the row comb of each periodic tile, each row followed both ways
-//!    in `step_m` steps by a robust local centroid, coasting over gaps of up to `max_gap_m`.
+//! 4. **Tracing** (`trace`): seeds on the row comb of each periodic tile (teeth with far less support
+//!    than the others, beyond the field's last row, are skipped), each row followed both ways in
+//!    `step_m` steps by a robust local centroid, coasting over gaps of up to `max_gap_m`.
 //! 5. **Assembly**: rows are ordered across the field, fragments of one row joined, traces off the
 //!    row comb (weed patches) dropped, and the spacing refined from the distances between
 //!    neighbouring rows.
@@ -143,7 +144,13 @@ impl Config {
         check_range("mapping.min_spacing_m", self.min_spacing_m, 0.05, 10.0)?;
         check_range("mapping.max_spacing_m", self.max_spacing_m, self.min_spacing_m * 1.5, 20.0)?;
         check_range("mapping.tile_m", self.tile_m, 2.0 * self.max_spacing_m, 200.0)?;
-        check_range("mapping.raster_m", self.raster_m, 0.005, self.min_spacing_m / 4.0)?;
+        // At most 4096 raster cells a tile side keeps the occupancy image and its FFT small.
+        check_range(
+            "mapping.raster_m",
+            self.raster_m,
+            (self.tile_m / 4096.0).max(0.005),
+            self.min_spacing_m / 4.0,
+        )?;
         check_range("mapping.step_m", self.step_m, 0.05, 10.0)?;
         check_range("mapping.window_m", self.window_m, 0.05, 20.0)?;
         check_range("mapping.half_width_fraction", self.half_width_fraction, 0.1, 0.5)?;
@@ -279,7 +286,9 @@ impl Extractor {
         }
         let local: Vec<[f64; 3]> =
             points.iter().map(|p| [p[0] - origin[0], p[1] - origin[1], p[2] - origin[2]]).collect();
-        let ground = Ground::estimate(&local, extent, cfg.ground_cell_m, cfg.ground_percentile);
+        // The ground grid is capped at ~2048 cells a side (32 MB an array), whatever the config.
+        let ground_cell_m = cfg.ground_cell_m.max(extent[0].max(extent[1]) / 2048.0);
+        let ground = Ground::estimate(&local, extent, ground_cell_m, cfg.ground_percentile);
         let heights: Vec<f64> = local.iter().map(|p| p[2] - ground.height_at(p[0], p[1])).collect();
 
         let mut vegetation: Vec<f64> = heights.iter().copied().filter(|h| *h > cfg.clearance_m).collect();
@@ -362,7 +371,7 @@ impl Extractor {
 
     /// The row pattern of every tile of `xy` that holds enough to analyse.
     fn analyse_tiles(&self, analyzer: &mut Analyzer, xy: &[[f64; 2]], extent: [f64; 2]) -> Vec<Tile> {
-        let tile = self.config.tile_m;
+        let tile = self.config.tile_m.max(extent[0].max(extent[1]) / 4096.0);
         let nx = (extent[0] / tile).ceil().max(1.0) as usize;
         let ny = (extent[1] / tile).ceil().max(1.0) as usize;
         let mut buckets: Vec<Vec<[f64; 2]>> = vec![Vec::new(); nx * ny];

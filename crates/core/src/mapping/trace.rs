@@ -4,8 +4,10 @@
 //! heading, gathers the slice points in a window around the prediction (`window_m` along, a fraction of
 //! the spacing across), and moves the centre to their robust across-row centroid (median, then two
 //! trimmed means, which ignores the odd weed between the rows). The heading follows the measured
-//! centres. Where the row has a gap the trace coasts straight on for up to `max_gap_m`; a trace that
-//! finds nothing further ends at its last supported centre.
+//! centres. A window counts as a gap when it holds too few points, far fewer than the trace's running
+//! typical support (a weed in a gap), or a centre that jumps sideways (rows bend by millimetres per
+//! step); over a gap the trace coasts straight on for up to `max_gap_m`, and a trace that finds
+//! nothing further ends at its last supported centre.
 
 /// Points of the height slice, bucketed on a uniform grid for rectangle queries (local frame, m).
 #[derive(Debug)]
