@@ -21,7 +21,7 @@ impl Ground {
     /// pass removes the percentile's bias (a sloped cell's low percentile lies below its centre, and a
     /// noisy soil's below its mean) that would otherwise lift soil points above the clearance.
     ///
-    /// Allocates the grid, one index array over the points and a scratch buffer.
+    /// Allocates the grid, a cell-ordered copy of the points and a scratch buffer.
     pub(crate) fn estimate(xyz: &[[f64; 3]], extent_m: [f64; 2], cell_m: f64, percentile: f64) -> Self {
         let nx = cells_along(extent_m[0], cell_m);
         let ny = cells_along(extent_m[1], cell_m);
@@ -38,18 +38,20 @@ impl Ground {
         for i in 0..nx * ny {
             start[i + 1] += start[i];
         }
+        // A copy in cell order: both passes then read memory sequentially (random access into a
+        // multi-million-point cloud costs more than the copy).
         let mut fill = start.clone();
-        let mut order = vec![0usize; xyz.len()];
-        for (i, p) in xyz.iter().enumerate() {
+        let mut sorted = vec![[0.0f64; 3]; xyz.len()];
+        for p in xyz {
             let c = cell_of(p);
-            order[fill[c]] = i;
+            sorted[fill[c]] = *p;
             fill[c] += 1;
         }
         let mut ground = Self { cell_m, nx, ny, z_m: vec![f64::NAN; nx * ny] };
         let mut scratch = Vec::new();
         for c in 0..nx * ny {
             scratch.clear();
-            scratch.extend(order[start[c]..start[c + 1]].iter().map(|&i| xyz[i][2]));
+            scratch.extend(sorted[start[c]..start[c + 1]].iter().map(|p| p[2]));
             ground.z_m[c] = percentile_of(&mut scratch, percentile).unwrap_or(f64::NAN);
         }
         ground.drop_raised_cells();
@@ -59,10 +61,8 @@ impl Ground {
         let mut correction = Self { cell_m, nx, ny, z_m: vec![f64::NAN; nx * ny] };
         for c in 0..nx * ny {
             scratch.clear();
-            scratch.extend(order[start[c]..start[c + 1]].iter().map(|&i| {
-                let p = xyz[i];
-                p[2] - ground.height_at(p[0], p[1])
-            }));
+            scratch
+                .extend(sorted[start[c]..start[c + 1]].iter().map(|p| p[2] - ground.height_at(p[0], p[1])));
             let Some(low) = percentile_of(&mut scratch, percentile) else { continue };
             let (sum, n) = scratch
                 .iter()

@@ -300,18 +300,21 @@ impl Extractor {
         let top_m = vegetation.iter().copied().fold(f64::MIN, f64::max) + 1e-6;
 
         let mut analyzer = Analyzer::new(cfg.raster_m, cfg.min_spacing_m, cfg.max_spacing_m);
-        let mut best: Option<(HeightSlice, Vec<Tile>)> = None;
+        // Slices are compared on the most populated tiles only (the field's interior); the winner is
+        // then analysed on every tile.
+        let mut best: Option<(HeightSlice, Vec<[f64; 2]>)> = None;
         for (min_m, max_m) in self.candidate_slices(canopy_height_m, top_m) {
             let xy = slice_points(&local, &heights, min_m, max_m);
-            let tiles = self.analyse_tiles(&mut analyzer, &xy, extent);
+            let tiles = self.analyse_tiles(&mut analyzer, &xy, extent, SLICE_SCORING_TILES);
             let mut scores: Vec<f64> = tiles.iter().map(|t| t.pattern.periodicity).collect();
             let periodicity = median(&mut scores).unwrap_or(0.0);
             if best.as_ref().is_none_or(|(s, _)| periodicity > s.periodicity) {
-                best = Some((HeightSlice { min_m, max_m: max_m.min(top_m), periodicity }, tiles));
+                best = Some((HeightSlice { min_m, max_m: max_m.min(top_m), periodicity }, xy));
             }
         }
-        let (slice, tiles) =
+        let (slice, xy) =
             best.unwrap_or((HeightSlice { min_m: 0.0, max_m: 0.0, periodicity: 0.0 }, Vec::new()));
+        let tiles = self.analyse_tiles(&mut analyzer, &xy, extent, usize::MAX);
         let mut good: Vec<Tile> =
             tiles.into_iter().filter(|t| t.pattern.periodicity >= cfg.min_periodicity).collect();
         if slice.periodicity < cfg.min_periodicity || good.is_empty() {
@@ -322,7 +325,6 @@ impl Extractor {
         let coarse_spacing_m = median(&mut spacings).unwrap_or(cfg.min_spacing_m);
         let direction_rad = mean_axis(good.iter().map(|t| (t.pattern.direction_rad, t.pattern.periodicity)));
 
-        let xy = slice_points(&local, &heights, slice.min_m, slice.max_m + 1e-6);
         // At most ~2048 buckets a side keeps the index small on a large field.
         let bucket_m = cfg.window_m.max(0.5).max(extent[0].max(extent[1]) / 2048.0);
         let index = Index::new(&xy, extent, bucket_m);
@@ -369,8 +371,14 @@ impl Extractor {
         slices
     }
 
-    /// The row pattern of every tile of `xy` that holds enough to analyse.
-    fn analyse_tiles(&self, analyzer: &mut Analyzer, xy: &[[f64; 2]], extent: [f64; 2]) -> Vec<Tile> {
+    /// The row pattern of the (at most `limit`, most populated) tiles of `xy` that hold enough to analyse.
+    fn analyse_tiles(
+        &self,
+        analyzer: &mut Analyzer,
+        xy: &[[f64; 2]],
+        extent: [f64; 2],
+        limit: usize,
+    ) -> Vec<Tile> {
         let tile = self.config.tile_m.max(extent[0].max(extent[1]) / 4096.0);
         let nx = (extent[0] / tile).ceil().max(1.0) as usize;
         let ny = (extent[1] / tile).ceil().max(1.0) as usize;
@@ -383,8 +391,12 @@ impl Extractor {
             let iy = (((p[1] - y0) / tile) as usize).min(ny - 1);
             buckets[iy * nx + ix].push(*p);
         }
+        let mut order: Vec<usize> = (0..buckets.len()).collect();
+        order.sort_by_key(|&i| std::cmp::Reverse(buckets[i].len()));
+        order.truncate(limit);
         let mut tiles = Vec::new();
-        for (i, pts) in buckets.iter().enumerate() {
+        for i in order {
+            let pts = &buckets[i];
             let centre = [x0 + ((i % nx) as f64 + 0.5) * tile, y0 + ((i / nx) as f64 + 0.5) * tile];
             let rel = pts.iter().map(|p| [p[0] - centre[0], p[1] - centre[1]]);
             if let Some(pattern) = analyzer.analyse(rel, tile / 2.0) {
@@ -522,6 +534,9 @@ fn closest_on_polyline(p: [f64; 2], line: &[[f64; 2]]) -> (f64, bool) {
 fn distance_to_polyline(p: [f64; 2], line: &[[f64; 2]]) -> f64 {
     closest_on_polyline(p, line).0
 }
+
+/// Tiles on which the candidate height slices are compared.
+const SLICE_SCORING_TILES: usize = 6;
 
 /// Support per metre, relative to the median row's, below which a trace is weeds, not a row.
 const MIN_RELATIVE_SUPPORT: f64 = 0.3;
