@@ -61,8 +61,10 @@ fn every_committed_format_gives_the_same_rows() {
 fn a_bad_file_fails_cleanly_naming_it() {
     let bad = out("broken.ply");
     std::fs::write(&bad, b"ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\n").unwrap();
-    let o = rows(&[bad.as_os_str(), "--out".as_ref(), out("never.geojson").as_os_str()]);
+    let never = out("never.geojson");
+    let o = rows(&[bad.as_os_str(), "--out".as_ref(), never.as_os_str()]);
     assert!(!o.status.success());
+    assert!(!never.exists(), "an empty output was left behind");
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(stderr.contains("broken.ply") && !stderr.contains("panicked"), "{stderr}");
 }

@@ -1,6 +1,7 @@
 //! `croprow rows CLOUD --out rows.geojson`: every crop row of a whole-field point-cloud map (PCD, PLY,
 //! LAS or text) as GeoJSON LineStrings with the row spacing, in the cloud's own frame and units.
 
+use std::io::Write as _;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -28,21 +29,37 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => Config::default(),
     };
     let extractor = Extractor::new(config).context("invalid mapping configuration")?;
+    // Open the output first: a typo in its path should not cost the reading and extraction.
+    let out =
+        std::fs::File::create(&args.out).with_context(|| format!("cannot write {}", args.out.display()))?;
     let started = Instant::now();
-    let cloud = maps::read_cloud(&args.cloud)?;
-    let read_s = started.elapsed().as_secs_f64();
-    let started = Instant::now();
-    let map = extractor
-        .extract(&cloud)
-        .with_context(|| format!("no rows extracted from {}", args.cloud.display()))?;
-    let extract_s = started.elapsed().as_secs_f64();
-    let json = serde_json::to_string_pretty(&maps::rows_to_geojson(&map))?;
-    std::fs::write(&args.out, json).with_context(|| format!("cannot write {}", args.out.display()))?;
+    let extracted = maps::read_cloud(&args.cloud).map_err(anyhow::Error::from).and_then(|cloud| {
+        let read_s = started.elapsed().as_secs_f64();
+        let started = Instant::now();
+        let map = extractor
+            .extract(&cloud)
+            .with_context(|| format!("no rows extracted from {}", args.cloud.display()))?;
+        Ok((cloud.len(), read_s, map, started.elapsed().as_secs_f64()))
+    });
+    let (points, read_s, map, extract_s) = match extracted {
+        Ok(done) => done,
+        Err(e) => {
+            // No half-made output: the empty file opened above goes.
+            drop(out);
+            let _ = std::fs::remove_file(&args.out);
+            return Err(e);
+        }
+    };
+    let mut out = std::io::BufWriter::new(out);
+    serde_json::to_writer_pretty(&mut out, &maps::rows_to_geojson(&map))
+        .map_err(anyhow::Error::from)
+        .and_then(|()| out.flush().map_err(anyhow::Error::from))
+        .with_context(|| format!("cannot write {}", args.out.display()))?;
     eprintln!(
         "{}: {} points read in {read_s:.2} s; {} rows, spacing {:.3} m, direction {:.1}°, slice {:.2}-{:.2} m above ground \
          (periodicity {:.2}), extracted in {extract_s:.2} s -> {}",
         args.cloud.display(),
-        cloud.len(),
+        points,
         map.rows.len(),
         map.spacing_m,
         map.direction_rad.to_degrees(),
