@@ -64,6 +64,21 @@ fn curved_rows() {
 }
 
 #[test]
+fn a_full_period_of_curved_maize_with_gaps_and_weeds() {
+    // 100 m: the whole y = 6 sin(2πx/100) period. Seed 2 once left a duplicate trace that slid off the
+    // outer row at its end; assembly now keeps the better-supported of overlapping pieces.
+    check(&Field {
+        curve_m: 6.0,
+        length_m: 100.0,
+        rows: 6,
+        angle_rad: 0.6,
+        weeds_per_m2: 0.2,
+        gaps: true,
+        ..Field::new(2, Crop::Maize)
+    });
+}
+
+#[test]
 fn seedlings_with_weeds_and_gaps() {
     check(&Field { weeds_per_m2: 0.5, gaps: true, spacing_m: 0.5, ..Field::new(3, Crop::Seedling) });
 }

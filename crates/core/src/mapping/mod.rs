@@ -93,7 +93,7 @@ pub struct Config {
     pub max_gap_m: f64,
     /// Fewest slice points in a window for it to give a centre. Default 4.
     pub min_segment_points: usize,
-    /// Shortest row reported, m. Default 1.0 (shorter traces are weed patches or field edges).
+    /// Shortest row reported, m. Default 2.0 (shorter traces are weed patches or field edges).
     pub min_row_length_m: f64,
     /// Least periodicity (coherence of the occupancy with the row comb, [0, 1]; about 1/sqrt(cells) for
     /// no pattern) for a tile to count as rows. Default 0.15.
@@ -122,7 +122,7 @@ impl Default for Config {
             half_width_fraction: 0.4,
             max_gap_m: 3.0,
             min_segment_points: 4,
-            min_row_length_m: 1.0,
+            min_row_length_m: 2.0,
             min_periodicity: 0.15,
             max_extent_m: 2000.0,
             min_points: 100,
@@ -584,25 +584,42 @@ fn assemble(
         .collect();
     keyed.sort_by(|a, b| a.0.total_cmp(&b.0));
 
-    let mut rows: Vec<(f64, Trace)> = Vec::new();
+    // Traces whose keys are within a third of a spacing are pieces of one row. Within a row the best
+    // supported pieces are kept first; a piece overlapping a kept one along the row is a duplicate (or
+    // a trace that slid off the row at its end) and goes; the rest are joined in order along the row.
+    let mut groups: Vec<(f64, Vec<Trace>)> = Vec::new();
     for (key, t) in keyed {
-        match rows.last_mut() {
-            Some((row_key, row)) if (key - *row_key).abs() < spacing_m / 3.0 => {
-                let (Some(first), Some(end)) = (t.centres.first(), row.centres.last()) else { continue };
-                let (Some(row_first), Some(last)) = (row.centres.first(), t.centres.last()) else { continue };
-                // A fragment beyond either end of the row joins it; an overlapping duplicate is dropped.
-                if along(first) >= along(end) - step_m / 2.0 {
-                    row.centres.extend_from_slice(&t.centres);
-                    row.support += t.support;
-                } else if along(last) <= along(row_first) + step_m / 2.0 {
-                    let mut joined = t.centres.clone();
-                    joined.extend_from_slice(&row.centres);
-                    row.centres = joined;
-                    row.support += t.support;
-                }
-            }
-            _ => rows.push((key, t)),
+        match groups.last_mut() {
+            Some((group_key, pieces)) if (key - *group_key).abs() < spacing_m / 3.0 => pieces.push(t),
+            _ => groups.push((key, vec![t])),
         }
+    }
+    let span = |t: &Trace| {
+        let first = t.centres.first().map_or(0.0, along);
+        let last = t.centres.last().map_or(0.0, along);
+        (first, last)
+    };
+    let mut rows: Vec<(f64, Trace)> = Vec::new();
+    for (key, mut pieces) in groups {
+        pieces.sort_by_key(|t| std::cmp::Reverse(t.support));
+        let mut kept: Vec<Trace> = Vec::new();
+        for piece in pieces {
+            let (a0, a1) = span(&piece);
+            let overlaps = kept.iter().any(|k| {
+                let (b0, b1) = span(k);
+                a0 < b1 - step_m / 2.0 && b0 < a1 - step_m / 2.0
+            });
+            if !overlaps {
+                kept.push(piece);
+            }
+        }
+        kept.sort_by(|a, b| span(a).0.total_cmp(&span(b).0));
+        let mut joined = Trace { centres: Vec::new(), support: 0 };
+        for piece in kept {
+            joined.centres.extend_from_slice(&piece.centres);
+            joined.support += piece.support;
+        }
+        rows.push((key, joined));
     }
     // Rows sit on a comb of the spacing; a trace between two teeth is a weed patch, and so is a trace
     // on a tooth beyond the field whose support per metre is a fraction of a real row's.

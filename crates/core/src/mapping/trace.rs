@@ -4,8 +4,7 @@
 //! heading, gathers the slice points in a window around the prediction (`window_m` along, a fraction of
 //! the spacing across), and moves the centre to their robust across-row centroid (median, then two
 //! trimmed means, which ignores the odd weed between the rows). The heading follows the measured
-//! centres. A window counts as a gap when it holds too few points, far fewer than the trace's running
-//! typical support (a weed in a gap), or a centre that jumps sideways (rows bend by millimetres per
+//! centres. A window counts as a gap when it holds too few points, far fewer than the trace's mean support (a weed in a gap), or a centre that jumps sideways (rows bend by millimetres per
 //! step); over a gap the trace coasts straight on for up to `max_gap_m`, and a trace that finds
 //! nothing further ends at its last supported centre.
 
@@ -162,8 +161,8 @@ impl<'a> Tracer<'a> {
             centre = [centre[0] + normal[0] * off, centre[1] + normal[1] * off];
             support = n;
         }
-        let (ahead, s_ahead) = self.follow(centre, dir);
-        let (behind, s_behind) = self.follow(centre, [-dir[0], -dir[1]]);
+        let (ahead, s_ahead) = self.follow(centre, dir, support);
+        let (behind, s_behind) = self.follow(centre, [-dir[0], -dir[1]], support);
         let mut centres: Vec<[f64; 2]> = behind.into_iter().rev().collect();
         centres.push(centre);
         centres.extend(ahead);
@@ -172,16 +171,17 @@ impl<'a> Tracer<'a> {
 
     /// Follows the row from `start` along `dir0`; returns the supported centres (not `start`) and
     /// their summed support.
-    fn follow(&mut self, start: [f64; 2], dir0: [f64; 2]) -> (Vec<[f64; 2]>, usize) {
+    fn follow(&mut self, start: [f64; 2], dir0: [f64; 2], seed_support: usize) -> (Vec<[f64; 2]>, usize) {
         let p = self.params;
         let (mut at, mut dir) = (start, dir0);
         let mut kept = Vec::new();
         let mut pending: Vec<[f64; 2]> = Vec::new();
         let mut support = 0;
         let margin = p.window_m;
-        // Running mean of the supported windows' point counts: a window far below it inside a gap
-        // holds a weed, not the row.
-        let mut typical: Option<f64> = None;
+        // Mean point count of the supported windows, the seed's included: a window far below it inside
+        // a gap holds a weed, not the row. (Cumulative, not running: a running mean sinks as weak
+        // windows are accepted and lets the trace slide from the row onto a string of weeds.)
+        let (mut support_sum, mut supported) = (seed_support as f64, 1.0f64);
         loop {
             let next = [at[0] + dir[0] * p.step_m, at[1] + dir[1] * p.step_m];
             if next[0] < -margin
@@ -192,12 +192,13 @@ impl<'a> Tracer<'a> {
                 break;
             }
             let reading = self.measure(next, dir).filter(|&(off, n)| {
-                let enough = typical.is_none_or(|t| n as f64 >= WEED_SUPPORT_RATIO * t);
+                let enough = n as f64 >= WEED_SUPPORT_RATIO * support_sum / supported;
                 enough && off.abs() <= MAX_JUMP_FRACTION * p.half_width_m
             });
             match reading {
                 Some((off, n)) => {
-                    typical = Some(typical.map_or(n as f64, |t| 0.8 * t + 0.2 * n as f64));
+                    support_sum += n as f64;
+                    supported += 1.0;
                     let moved = [next[0] - dir[1] * off, next[1] + dir[0] * off];
                     let last = kept.last().copied().unwrap_or(start);
                     let (dx, dy) = (moved[0] - last[0], moved[1] - last[1]);

@@ -71,7 +71,7 @@ impl Field {
     }
 
     /// Row `r`'s centre at parameter `u`, plus `lateral_m` along the normal, in the cloud frame.
-    fn row_point(&self, r: usize, u: f64, lateral_m: f64) -> [f64; 2] {
+    pub fn row_point(&self, r: usize, u: f64, lateral_m: f64) -> [f64; 2] {
         let (c, n) = self.curve(u);
         let v = (r as f64 - (self.rows as f64 - 1.0) / 2.0) * self.spacing_m + lateral_m;
         self.to_cloud([c[0] + n[0] * v, c[1] + n[1] * v])
