@@ -239,11 +239,9 @@ struct Ref {
     prim: u32,
 }
 
-/// One grid cell's summary.
+/// What a cell holds beyond its height bound: read only when a ray dips under that bound.
 #[derive(Debug, Clone, Copy)]
 struct CellInfo {
-    /// Highest point of any primitive or of the ground in the cell, m.
-    max_z: f32,
     /// Highest point of the ground in the cell, m: a ray that stays above it cannot meet the ground here.
     ground_z: f32,
     /// The cell's primitives are `refs[start..end]`.
@@ -266,8 +264,11 @@ pub(crate) struct Scene {
     inv_cell: f32,
     nx: i32,
     ny: i32,
-    /// Per cell: height bounds and primitive references, in one array so that a visited cell costs one
-    /// cache line.
+    /// Per cell, row-major (`j * nx + i`): highest point of any primitive or of the ground, m. Apart from
+    /// the rest of the cell so that the march over the canopy reads 4 bytes a cell (the array of a
+    /// 200 m field fits in a 2 MB L2 cache; with the rest it would not).
+    heights: Vec<f32>,
+    /// Per cell: the ground bound and the primitive references.
     cells: Vec<CellInfo>,
     /// CSR: primitives of cell `c` are `refs[cells[c].start..cells[c].end]`.
     refs: Vec<Ref>,
@@ -365,7 +366,7 @@ impl Scene {
         let top_z = max_z.iter().copied().fold(relief.amplitude_m() as f32, f32::max) + 0.01;
         let bottom_z = -(relief.amplitude_m() as f32) - 0.01;
         let cells = (0..n_cells)
-            .map(|c| CellInfo { max_z: max_z[c], ground_z: ground_z[c], start: start[c], end: start[c + 1] })
+            .map(|c| CellInfo { ground_z: ground_z[c], start: start[c], end: start[c + 1] })
             .collect();
         let relief_slope = slope_bound(&relief, x_min, x_max, y_min, y_max, cell_m);
         Self {
@@ -378,6 +379,7 @@ impl Scene {
             inv_cell,
             nx,
             ny,
+            heights: max_z,
             cells,
             refs,
             top_z,
@@ -433,7 +435,8 @@ impl Scene {
     /// 2-D DDA over the cells the ray crosses between `t0` and `t1` (both inside the grid).
     fn traverse(&self, o: [f32; 3], d: [f32; 3], t0: f32, t1: f32) -> Option<(f32, Class)> {
         let (nx, ny) = (self.nx, self.ny);
-        let (cells, refs, prims) = (self.cells.as_slice(), self.refs.as_slice(), self.prims.as_slice());
+        let (heights, cells) = (self.heights.as_slice(), self.cells.as_slice());
+        let (refs, prims) = (self.refs.as_slice(), self.prims.as_slice());
         let eps = 1e-4 * self.cell_m;
         // `as i32` saturates and maps NaN to 0; the clamp keeps the start cell inside the grid.
         let cell_of = |p: f32, origin: f32, n: i32| (((p - origin) * self.inv_cell) as i32).clamp(0, n - 1);
@@ -464,8 +467,11 @@ impl Scene {
             // The lowest point of the ray within the cell is at one of its ends.
             let z_exit = o[2] + t_exit * d[2];
             let (z_low, z_high) = if z_exit < z_enter { (z_exit, z_enter) } else { (z_enter, z_exit) };
-            let Some(info) = cells.get((j * nx + i) as usize) else { break };
-            if z_low <= info.max_z {
+            let c = (j * nx + i) as usize;
+            let Some(&max_z) = heights.get(c) else { break };
+            if z_low <= max_z
+                && let Some(info) = cells.get(c)
+            {
                 if z_low <= info.ground_z {
                     let tg = if flat {
                         (flat_ground_t >= t_enter && flat_ground_t <= t_exit).then_some(flat_ground_t)
