@@ -3,11 +3,17 @@
 //!
 //! `cargo bench -p croprow-sim --bench lidar -- --warm-up-time 1 --measurement-time 3`
 //!
-//! Measured 2026-11-22 on the shared 2-core build machine under a load average of ~9 (the process got
-//! 39-71 % of a core, so wall times overstate the CPU cost by ~1.5-2.5x): young corn 11.1 ms, grown
-//! corn 9.6-22.9 ms, young soybean 8.0 ms, grown soybean 18.4 ms, curved corn 16.1 ms per revolution
-//! (wall). CPU-normalised: young corn ~4.3 ms (150 ns/ray), grown corn ~6.8-9 ms (240-310 ns/ray);
-//! the 1 ms target is not met yet.
+//! Measured 2026-11-22 on the shared 2-core AMD EPYC build machine (load average 3-5, so wall times
+//! are noisy: compare instruction counts). Before -> after the per-cell height ranges (commit 76b93fa),
+//! median wall time per revolution, both binaries run back to back:
+//! young corn 4.00 -> 3.66 ms, grown corn 8.26 -> 5.01 ms, young soybean 4.34 -> 3.85 ms,
+//! grown soybean 8.28 -> 5.77 ms, curved corn 4.00 -> 4.67 ms (CPU time of the same scans measured
+//! alone: 4.2 -> 3.9 ms, i.e. unchanged within the noise). Instructions per revolution (callgrind on
+//! `examples/raycast_cost.rs`, `Lidar::cast_columns` only): young corn 32.4M -> 22.5M, grown corn 55.7M -> 30.4M, young soybean
+//! 39.0M -> 24.8M, grown soybean 68.2M -> 31.7M, curved corn 33.3M -> 23.6M. The scans are bit for bit
+//! the same as before. The 1 ms target is not met: a downward ray (13k of the 28.8k) still costs
+//! ~2,200 instructions (grown corn: 16 cells, 30 primitive references, 10 primitive tests); getting
+//! under 1 ms needs SIMD primitive tests over structure-of-arrays cells, not more culling.
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use croprow_core::Pose2;

@@ -4,10 +4,11 @@
 //!
 //! `cargo bench -p croprow-sim --bench world -- --warm-up-time 1 --measurement-time 3`
 //!
-//! Measured 2026-11-22 on the shared 2-core build machine (load average ~9, the process got 44 % of a
-//! core): young corn 8.6 ms, grown corn 21.6 ms per 0.1 s simulated (wall), i.e. a real-time factor of
-//! ~12x and ~4.6x wall, ~26x and ~10x CPU-normalised. The ray casting dominates: one revolution alone
-//! costs about as much on the lidar bench.
+//! Measured 2026-11-22 on the shared 2-core build machine (load average 3-5; wall time), before ->
+//! after the per-cell height ranges of the ray caster (commit 76b93fa), both binaries run back to back:
+//! young corn 4.79 -> 3.71 ms, grown corn 9.87 -> 7.33 ms per 0.1 s simulated, i.e. a real-time factor
+//! of 21x -> 27x and 10x -> 14x. The ray casting dominates: one revolution alone costs most of it on
+//! the lidar bench.
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use croprow_sim::{Scenario, World};

@@ -1,11 +1,19 @@
 //! The ray-casting scene: plant primitives binned in a 2-D uniform grid with a per-cell height bound, and
 //! the terrain. It sits between the field generator (which fills it) and the LiDAR (which casts rays).
 //!
-//! Speed comes from three things: rays start where they first dip below the tallest thing in the field
-//! (rays going up never enter the grid), cells whose height bound lies under the ray are skipped without
-//! touching a primitive, and the first hit that lies inside the current cell ends the ray. Primitives
-//! are cheap to intersect: flat patches (rectangles and ellipses) for leaves, vertical cylinders for
-//! stalks, axis-aligned ellipsoids for weed clumps. All geometry is `f32` in the field frame (metres).
+//! Speed comes from culling, so that a ray tests few primitives:
+//! - rays start where they first dip below the tallest thing in the field (rays going up never enter
+//!   the grid), and cells whose height bound lies under the ray are skipped without touching a primitive;
+//! - each cell lists a primitive with the height range of the part of it that lies over that cell (a
+//!   tilted leaf spans 20 cm of height but a few cm over one 10 cm cell), sorted from the highest top
+//!   down, so a ray coming down scans only the primitives reaching above it and tests only those whose
+//!   range meets its own height range across the cell;
+//! - only hits inside the current cell count (a hit farther on is found in the cell it lies in), and
+//!   the first one ends the ray.
+//!
+//! Primitives are cheap to intersect: flat patches (rectangles and ellipses) for leaves, vertical
+//! cylinders for stalks, axis-aligned spheroids for weed clumps. All geometry is `f32` in the field frame
+//! (metres). A test checks the grid against a brute-force caster (every primitive, no grid).
 
 use crate::terrain::Relief;
 
@@ -165,6 +173,62 @@ impl Prim {
     }
 }
 
+/// Slack of the per-cell hit window along the ray, m: covers the f32 rounding of the DDA's cell
+/// boundaries (well under a millimetre over 100 m of ray).
+const WINDOW_SLACK_M: f32 = 2e-3;
+/// Primitives are listed in every cell they come this close to, m; must exceed `WINDOW_SLACK_M`.
+const FOOTPRINT_MARGIN_M: f64 = 3e-3;
+
+/// What the grid builder needs of a primitive: its bounding box and, for a flat patch, its plane as
+/// `z = gx·x + gy·y + z0` (field frame, m), so that the height range over one small cell is that of the
+/// plane over the cell, not the patch's whole height range.
+struct Footprint {
+    /// `[xmin, ymin, zmin, xmax, ymax, zmax]`.
+    b: [f64; 6],
+    /// `(gx, gy, z0)` for a patch that is not near vertical.
+    plane: Option<(f64, f64, f64)>,
+}
+
+impl Footprint {
+    fn of(p: &Prim) -> Self {
+        let b = p.bounds().map(f64::from);
+        let plane = match p.shape {
+            // Steeper than ~80°: the plane's height over a cell says nothing the bounds do not.
+            Shape::Patch { o, n, .. } if (n[2] as f64).abs() > 0.17 * norm(n) => {
+                let (nx, ny, nz) = (n[0] as f64, n[1] as f64, n[2] as f64);
+                let (gx, gy) = (-nx / nz, -ny / nz);
+                Some((gx, gy, o[2] as f64 - gx * o[0] as f64 - gy * o[1] as f64))
+            }
+            _ => None,
+        };
+        Self { b, plane }
+    }
+
+    /// Height range `(z_min, z_max)` over the box `[x0, x1] × [y0, y1]`, or `None` when the bounds do
+    /// not reach over it. Conservative.
+    fn z_range_over(&self, x0: f64, x1: f64, y0: f64, y1: f64) -> Option<(f64, f64)> {
+        // Margin: a point within this of a cell edge belongs to both cells, which covers the rounding of
+        // the caster's f32 cell boundaries (see `traverse`).
+        let m = FOOTPRINT_MARGIN_M;
+        let (x0, x1, y0, y1) = (x0 - m, x1 + m, y0 - m, y1 + m);
+        let b = &self.b;
+        if b[0] > x1 || b[3] < x0 || b[1] > y1 || b[4] < y0 {
+            return None;
+        }
+        let Some((gx, gy, z0)) = self.plane else { return Some((b[2], b[5])) };
+        // A linear function over the (clipped) box peaks at its corners.
+        let (xa, xb) = (x0.max(b[0]), x1.min(b[3]));
+        let (ya, yb) = (y0.max(b[1]), y1.min(b[4]));
+        let zx = (gx * xa, gx * xb);
+        let zy = (gy * ya, gy * yb);
+        let lo = z0 + zx.0.min(zx.1) + zy.0.min(zy.1);
+        let hi = z0 + zx.0.max(zx.1) + zy.0.max(zy.1);
+        let (lo, hi) = (lo.max(b[2]), hi.min(b[5]));
+        // The patch's bounds reach over the box but the patch may not: an empty range means it misses.
+        (lo <= hi).then_some((lo, hi))
+    }
+}
+
 /// A primitive listed in a cell, with its height range so that a ray passing above or below it within
 /// the cell skips it without loading the primitive. Grazing rays (a VLP-16's side beams drop a few
 /// centimetres per metre) cross many cells but meet few primitives at their height.
@@ -175,12 +239,14 @@ struct Ref {
     prim: u32,
 }
 
-/// One grid cell's summary.
+/// What a cell holds beyond its height bound: read only when a ray dips under that bound.
 #[derive(Debug, Clone, Copy)]
 struct CellInfo {
-    /// Highest point of any primitive or of the ground in the cell, m.
-    max_z: f32,
+    /// Highest point of the ground in the cell, m: a ray that stays above it cannot meet the ground here.
+    ground_z: f32,
+    /// The cell's primitives are `refs[start..end]`.
     start: u32,
+    end: u32,
 }
 
 /// The scene: primitives, the grid over them, and the terrain.
@@ -188,6 +254,8 @@ struct CellInfo {
 pub(crate) struct Scene {
     prims: Vec<Prim>,
     relief: Relief,
+    /// Upper bound of the relief's slope |∇h| (numerical, with margin), for sphere tracing.
+    relief_slope: f64,
     /// Grid origin (field frame), m.
     x0: f32,
     y0: f32,
@@ -196,10 +264,13 @@ pub(crate) struct Scene {
     inv_cell: f32,
     nx: i32,
     ny: i32,
-    /// Per cell (plus one sentinel): height bound and first primitive reference. Both in one array so a
-    /// visited cell costs one cache line.
+    /// Per cell, row-major (`j * nx + i`): highest point of any primitive or of the ground, m. Apart from
+    /// the rest of the cell so that the march over the canopy reads 4 bytes a cell (the array of a
+    /// 200 m field fits in a 2 MB L2 cache; with the rest it would not).
+    heights: Vec<f32>,
+    /// Per cell: the ground bound and the primitive references.
     cells: Vec<CellInfo>,
-    /// CSR: primitives of cell `c` are `refs[cells[c].start..cells[c + 1].start]`.
+    /// CSR: primitives of cell `c` are `refs[cells[c].start..cells[c].end]`.
     refs: Vec<Ref>,
     /// Highest and lowest point of the whole scene, m.
     top_z: f32,
@@ -236,6 +307,7 @@ impl Scene {
                 max_z[(j * nx + i) as usize] = (h + 0.002) as f32;
             }
         }
+        let ground_z = max_z.clone();
         let range = |b: &[f32; 6]| {
             let i0 = (((b[0] - x0) * inv_cell).floor() as i32).clamp(0, nx - 1);
             let i1 = (((b[3] - x0) * inv_cell).floor() as i32).clamp(0, nx - 1);
@@ -243,47 +315,76 @@ impl Scene {
             let j1 = (((b[4] - y0) * inv_cell).floor() as i32).clamp(0, ny - 1);
             (i0, i1, j0, j1)
         };
-        let bounds: Vec<[f32; 6]> = prims.iter().map(Prim::bounds).collect();
-        let mut count = vec![0u32; n_cells + 1];
-        for b in &bounds {
-            let (i0, i1, j0, j1) = range(b);
+        // Every (cell, primitive) overlap, with the primitive's height range inside that cell's column:
+        // a tilted leaf spans 20 cm of height overall but a few centimetres above any one small cell, and
+        // that is what lets a ray skip it. Two passes (count, then fill) keep the build at one allocation.
+        let overlaps = |p: &Prim, mut visit: Box<dyn FnMut(usize, f64, f64) + '_>| {
+            let (i0, i1, j0, j1) = range(&p.bounds());
+            let shape = Footprint::of(p);
             for j in j0..=j1 {
                 for i in i0..=i1 {
-                    let c = (j * nx + i) as usize;
-                    count[c + 1] += 1;
-                    max_z[c] = max_z[c].max(b[5]);
+                    let (cx0, cy0) = (x_min + i as f64 * cell_m, y_min + j as f64 * cell_m);
+                    if let Some((z_lo, z_hi)) = shape.z_range_over(cx0, cx0 + cell_m, cy0, cy0 + cell_m) {
+                        visit((j * nx + i) as usize, z_lo, z_hi);
+                    }
                 }
             }
+        };
+        let mut start = vec![0u32; n_cells + 1];
+        for p in &prims {
+            overlaps(
+                p,
+                Box::new(|c, _, z_hi| {
+                    start[c + 1] += 1;
+                    max_z[c] = max_z[c].max(z_hi as f32 + 1e-3);
+                }),
+            );
         }
         for c in 0..n_cells {
-            count[c + 1] += count[c];
+            start[c + 1] += start[c];
         }
-        let start = count;
         let mut fill = start.clone();
         let mut refs = vec![Ref { z_min: 0.0, z_max: 0.0, prim: 0 }; start[n_cells] as usize];
-        for (k, b) in bounds.iter().enumerate() {
-            let (i0, i1, j0, j1) = range(b);
-            for j in j0..=j1 {
-                for i in i0..=i1 {
-                    let c = (j * nx + i) as usize;
+        for (k, p) in prims.iter().enumerate() {
+            overlaps(
+                p,
+                Box::new(|c, z_lo, z_hi| {
                     // 1 mm of slack: a flat leaf has z_min == z_max and the ray's f32 height must not miss it.
-                    refs[fill[c] as usize] = Ref { z_min: b[2] - 1e-3, z_max: b[5] + 1e-3, prim: k as u32 };
+                    refs[fill[c] as usize] =
+                        Ref { z_min: z_lo as f32 - 1e-3, z_max: z_hi as f32 + 1e-3, prim: k as u32 };
                     fill[c] += 1;
-                }
-            }
+                }),
+            );
         }
-        // Lowest first: a ray meets a cell's primitives only up to the first one that starts above it.
+        // Per cell, highest top first: a ray coming down meets a cell's primitives only down to the first
+        // one whose top lies under the ray. Ties by index keep the build deterministic.
         for c in 0..n_cells {
             if let Some(cell) = refs.get_mut(start[c] as usize..start[c + 1] as usize) {
-                cell.sort_unstable_by(|a, b| a.z_min.total_cmp(&b.z_min).then(a.prim.cmp(&b.prim)));
+                cell.sort_unstable_by(|a, b| b.z_max.total_cmp(&a.z_max).then(a.prim.cmp(&b.prim)));
             }
         }
         let top_z = max_z.iter().copied().fold(relief.amplitude_m() as f32, f32::max) + 0.01;
         let bottom_z = -(relief.amplitude_m() as f32) - 0.01;
-        let cells = (0..=n_cells)
-            .map(|c| CellInfo { max_z: max_z.get(c).copied().unwrap_or(0.0), start: start[c] })
+        let cells = (0..n_cells)
+            .map(|c| CellInfo { ground_z: ground_z[c], start: start[c], end: start[c + 1] })
             .collect();
-        Self { prims, relief, x0, y0, cell_m: cell, inv_cell, nx, ny, cells, refs, top_z, bottom_z }
+        let relief_slope = slope_bound(&relief, x_min, x_max, y_min, y_max, cell_m);
+        Self {
+            prims,
+            relief,
+            relief_slope,
+            x0,
+            y0,
+            cell_m: cell,
+            inv_cell,
+            nx,
+            ny,
+            heights: max_z,
+            cells,
+            refs,
+            top_z,
+            bottom_z,
+        }
     }
 
     /// Number of primitives.
@@ -333,49 +434,71 @@ impl Scene {
 
     /// 2-D DDA over the cells the ray crosses between `t0` and `t1` (both inside the grid).
     fn traverse(&self, o: [f32; 3], d: [f32; 3], t0: f32, t1: f32) -> Option<(f32, Class)> {
+        let (nx, ny) = (self.nx, self.ny);
+        let (heights, cells) = (self.heights.as_slice(), self.cells.as_slice());
+        let (refs, prims) = (self.refs.as_slice(), self.prims.as_slice());
         let eps = 1e-4 * self.cell_m;
-        let px = o[0] + (t0 + eps) * d[0];
-        let py = o[1] + (t0 + eps) * d[1];
-        let mut i = (((px - self.x0) * self.inv_cell).floor() as i32).clamp(0, self.nx - 1);
-        let mut j = (((py - self.y0) * self.inv_cell).floor() as i32).clamp(0, self.ny - 1);
+        // `as i32` saturates and maps NaN to 0; the clamp keeps the start cell inside the grid.
+        let cell_of = |p: f32, origin: f32, n: i32| (((p - origin) * self.inv_cell) as i32).clamp(0, n - 1);
+        let mut i = cell_of(o[0] + (t0 + eps) * d[0], self.x0, nx);
+        let mut j = cell_of(o[1] + (t0 + eps) * d[1], self.y0, ny);
         let step_i = if d[0] >= 0.0 { 1 } else { -1 };
         let step_j = if d[1] >= 0.0 { 1 } else { -1 };
         let next_boundary = |k: i32, step: i32, origin: f32, oc: f32, dc: f32| -> (f32, f32) {
             if dc.abs() < 1e-12 {
                 return (f32::INFINITY, f32::INFINITY);
             }
-            let edge = origin + (k + if step > 0 { 1 } else { 0 }) as f32 * self.cell_m;
+            let edge = origin + (k + i32::from(step > 0)) as f32 * self.cell_m;
             ((edge - oc) / dc, self.cell_m / dc.abs())
         };
         let (mut t_next_x, dt_x) = next_boundary(i, step_i, self.x0, o[0], d[0]);
         let (mut t_next_y, dt_y) = next_boundary(j, step_j, self.y0, o[1], d[1]);
+        // On flat ground the ground crossing is one division per ray, not one per cell.
+        let flat_ground_t = if d[2] < 0.0 { -o[2] / d[2] } else { f32::INFINITY };
+        let flat = self.relief.is_flat();
         let mut t_enter = t0;
+        let mut z_enter = o[2] + t0 * d[2];
         let mut best = f32::INFINITY;
         let mut best_class = Class::Ground;
         loop {
-            let t_exit = t_next_x.min(t_next_y).min(t1);
-            let c = (j * self.nx + i) as usize;
+            // Plain comparisons, not f32::min: no NaN can reach here and they compile to one instruction.
+            let t_x = if t_next_x < t_next_y { t_next_x } else { t_next_y };
+            let t_exit = if t_x < t1 { t_x } else { t1 };
             // The lowest point of the ray within the cell is at one of its ends.
-            let (za, zb) = (o[2] + t_enter * d[2], o[2] + t_exit * d[2]);
-            let (z_low, z_high) = (za.min(zb), za.max(zb));
-            let (info, next) = (self.cells[c], self.cells[c + 1]);
-            if z_low <= info.max_z {
-                if let Some(tg) = self.ground_in(o, d, t_enter, t_exit)
-                    && tg < best
-                {
-                    best = tg;
-                    best_class = Class::Ground;
+            let z_exit = o[2] + t_exit * d[2];
+            let (z_low, z_high) = if z_exit < z_enter { (z_exit, z_enter) } else { (z_enter, z_exit) };
+            let c = (j * nx + i) as usize;
+            let Some(&max_z) = heights.get(c) else { break };
+            if z_low <= max_z
+                && let Some(info) = cells.get(c)
+            {
+                if z_low <= info.ground_z {
+                    let tg = if flat {
+                        (flat_ground_t >= t_enter && flat_ground_t <= t_exit).then_some(flat_ground_t)
+                    } else {
+                        self.ground_in(o, d, t_enter, t_exit)
+                    };
+                    if let Some(tg) = tg
+                        && tg < best
+                    {
+                        best = tg;
+                        best_class = Class::Ground;
+                    }
                 }
-                let (a, b) = (info.start as usize, next.start as usize);
-                for r in &self.refs[a..b] {
-                    if r.z_min > z_high {
+                // Only hits inside this cell count here: a hit farther on lies in a later cell, which lists
+                // the primitive too. The window is widened by a few millimetres for f32 rounding of the
+                // boundaries, and the primitives' footprints by as much (FOOTPRINT_MARGIN_M).
+                let (w_lo, w_hi) = (t_enter - WINDOW_SLACK_M, t_exit + WINDOW_SLACK_M);
+                for r in refs.get(info.start as usize..info.end as usize).unwrap_or(&[]) {
+                    if r.z_max < z_low {
                         break;
                     }
-                    if r.z_max < z_low {
+                    if r.z_min > z_high {
                         continue;
                     }
-                    let p = &self.prims[r.prim as usize];
-                    if let Some(t) = p.intersect(o, d, 0.0, best) {
+                    if let Some(p) = prims.get(r.prim as usize)
+                        && let Some(t) = p.intersect(o, d, w_lo, if best < w_hi { best } else { w_hi })
+                    {
                         best = t;
                         best_class = p.class;
                     }
@@ -388,16 +511,17 @@ impl Scene {
                 break;
             }
             t_enter = t_exit;
+            z_enter = z_exit;
             if t_next_x < t_next_y {
                 i += step_i;
                 t_next_x += dt_x;
-                if i < 0 || i >= self.nx {
+                if i < 0 || i >= nx {
                     break;
                 }
             } else {
                 j += step_j;
                 t_next_y += dt_y;
-                if j < 0 || j >= self.ny {
+                if j < 0 || j >= ny {
                     break;
                 }
             }
@@ -444,17 +568,14 @@ impl Scene {
 
     /// Ground hit of a ray segment outside the grid (bare headland).
     fn ground_outside(&self, o: [f32; 3], d: [f32; 3], ta: f32, tb: f32) -> Option<f32> {
-        if d[2] >= 0.0 {
-            return None;
-        }
-        let mut t = -o[2] / d[2];
-        if !self.relief.is_flat() {
-            // Fixed point on t = (z_o - h(p(t))) / -d_z; contracts fast for rays steeper than the relief.
-            for _ in 0..4 {
-                let h = self.relief.height((o[0] + t * d[0]) as f64, (o[1] + t * d[1]) as f64) as f32;
-                t = (h - o[2]) / d[2];
+        let t = if self.relief.is_flat() {
+            if d[2] >= 0.0 {
+                return None;
             }
-        }
+            -o[2] / d[2]
+        } else {
+            self.relief_crossing(o, d, ta, tb)?
+        };
         // Points inside the grid were handled by the traversal.
         let (x, y) = (o[0] + t * d[0], o[1] + t * d[1]);
         let inside = x >= self.x0
@@ -463,6 +584,70 @@ impl Scene {
             && y < self.y0 + self.ny as f32 * self.cell_m;
         (t >= ta && t <= tb && !inside).then_some(t)
     }
+
+    /// First crossing of the relief between `ta` and `tb` by sphere tracing: where the ray is `f` above
+    /// the ground, no crossing can lie closer than `f / L` (`L` bounds how fast `f` changes along the
+    /// ray), so the ray advances by that much (at least 2 cm) until it passes under the ground; bisection
+    /// then finds the crossing. Grazing rays far out over the headland need this: a fixed-point iteration
+    /// on the plane crossing diverges when the ray is flatter than the relief.
+    fn relief_crossing(&self, o: [f32; 3], d: [f32; 3], ta: f32, tb: f32) -> Option<f32> {
+        let (o, d) = (o.map(f64::from), d.map(f64::from));
+        let amp = self.relief.amplitude_m() + 1e-3;
+        // Only where the ray is within the relief's height band can it meet the ground.
+        let (mut a, mut b) = (ta as f64, tb as f64);
+        if d[2].abs() > 1e-12 {
+            let (t_up, t_down) = ((amp - o[2]) / d[2], (-amp - o[2]) / d[2]);
+            a = a.max(t_up.min(t_down));
+            b = b.min(t_up.max(t_down));
+        } else if o[2].abs() > amp {
+            return None;
+        }
+        if a >= b || a.is_nan() || b.is_nan() {
+            return None;
+        }
+        let f = |t: f64| o[2] + t * d[2] - self.relief.height(o[0] + t * d[0], o[1] + t * d[1]);
+        let lipschitz = d[2].abs() + self.relief_slope * (d[0] * d[0] + d[1] * d[1]).sqrt();
+        let (mut t, mut ft) = (a, f(a));
+        if ft <= 0.0 {
+            return Some(t as f32);
+        }
+        while t < b {
+            let t2 = (t + (ft / lipschitz).max(0.02)).min(b);
+            let f2 = f(t2);
+            if f2 <= 0.0 {
+                let (mut lo, mut hi) = (t, t2);
+                while hi - lo > 1e-5 {
+                    let m = 0.5 * (lo + hi);
+                    if f(m) > 0.0 {
+                        lo = m;
+                    } else {
+                        hi = m;
+                    }
+                }
+                return Some(hi as f32);
+            }
+            (t, ft) = (t2, f2);
+        }
+        None
+    }
+}
+
+/// An upper bound of the relief's slope: the largest gradient sampled every `step` over the field plus
+/// its surroundings, doubled. The relief is a sum of three plane waves, so one wavelength of samples in
+/// each direction already sees its steepest slopes; the doubling covers what the sampling misses.
+fn slope_bound(relief: &Relief, x_min: f64, x_max: f64, y_min: f64, y_max: f64, step: f64) -> f64 {
+    if relief.is_flat() {
+        return 0.0;
+    }
+    let (nx, ny) = (((x_max - x_min) / step) as usize + 1, ((y_max - y_min) / step) as usize + 1);
+    let mut g2 = 0f64;
+    for j in 0..ny {
+        for i in 0..nx {
+            let (gx, gy) = relief.gradient(x_min + i as f64 * step, y_min + j as f64 * step);
+            g2 = g2.max(gx * gx + gy * gy);
+        }
+    }
+    2.0 * g2.sqrt() + 1e-3
 }
 
 fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
@@ -481,6 +666,10 @@ fn dot32(a: [f32; 3], b: [f32; 3]) -> f32 {
 #[inline]
 fn sub32(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn norm(a: [f32; 3]) -> f64 {
+    dot32(a, a).sqrt() as f64
 }
 
 fn f32s(a: [f64; 3]) -> [f32; 3] {
@@ -573,6 +762,115 @@ mod tests {
             }
             let fast = fast.unwrap_or(f32::NAN);
             assert!((fast - best).abs() < 1e-4, "grid {fast} vs brute {best}");
+        }
+    }
+
+    /// Reference ground crossing: 1 cm steps along the ray in f64, then bisection to 1 µm.
+    fn brute_ground(relief: &Relief, o: [f32; 3], d: [f32; 3], t_max: f64) -> Option<f64> {
+        let f = |t: f64| {
+            let p = [0, 1, 2].map(|k| o[k] as f64 + t * d[k] as f64);
+            p[2] - relief.height(p[0], p[1])
+        };
+        let mut a = 0.0;
+        while a < t_max {
+            let b = (a + 0.01).min(t_max);
+            if f(a) > 0.0 && f(b) <= 0.0 {
+                let (mut lo, mut hi) = (a, b);
+                while hi - lo > 1e-6 {
+                    let m = 0.5 * (lo + hi);
+                    if f(m) > 0.0 { lo = m } else { hi = m }
+                }
+                return Some(hi);
+            }
+            a = b;
+        }
+        None
+    }
+
+    /// Every primitive and the ground, no grid: the answer the grid must reproduce.
+    fn brute_cast(s: &Scene, o: [f32; 3], d: [f32; 3], t_max: f32) -> Option<(f32, Class)> {
+        let mut best = brute_ground(&s.relief, o, d, t_max as f64).map(|t| (t as f32, Class::Ground));
+        for p in &s.prims {
+            if let Some(t) = p.intersect(o, d, 0.0, best.map_or(t_max, |b| b.0)) {
+                best = Some((t, p.class));
+            }
+        }
+        best
+    }
+
+    #[test]
+    fn grid_caster_matches_brute_force_on_real_fields() {
+        use crate::field::{Crop, Field, FieldConfig, Stage};
+        use rand::{RngExt, SeedableRng};
+        let fields = [
+            // Grown corn with weeds on flat ground, and young soybean on relief.
+            FieldConfig {
+                crop: Crop::Corn,
+                stage: Stage::Grown,
+                rows: 4,
+                length_m: 4.0,
+                headland_m: 1.0,
+                weeds_per_m2: 2.0,
+                ..FieldConfig::default()
+            },
+            FieldConfig {
+                crop: Crop::Soybean,
+                stage: Stage::Young,
+                rows: 4,
+                length_m: 4.0,
+                headland_m: 1.0,
+                weeds_per_m2: 2.0,
+                relief_m: 0.15,
+                relief_wavelength_m: 5.0,
+                ..FieldConfig::default()
+            },
+        ];
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(21);
+        for config in fields {
+            let field = Field::generate(&config, 9).unwrap();
+            let s = field.scene();
+            let (mut crop_hits, mut rays) = (0, 0);
+            while rays < 400 {
+                // Sensor-like rays from 1-2 m over the field and its surroundings: every other one aimed
+                // near a random plant (to exercise leaves and stalks), the rest 0-50° down at any azimuth.
+                let o = [
+                    rng.random_range(-2.0..6.0f32),
+                    rng.random_range(-2.0..4.5f32),
+                    rng.random_range(1.0..2.0f32),
+                ];
+                let d = if rays % 2 == 0 {
+                    let stems = field.stems();
+                    let stem = stems[rng.random_range(0..stems.len())];
+                    let target = [
+                        stem.x_m as f32 + rng.random_range(-0.3..0.3f32),
+                        stem.y_m as f32 + rng.random_range(-0.3..0.3f32),
+                        rng.random_range(0.0..stem.height_m as f32),
+                    ];
+                    let v = sub32(target, o);
+                    let n = dot32(v, v).sqrt();
+                    v.map(|c| c / n)
+                } else {
+                    let az = rng.random_range(0.0..std::f32::consts::TAU);
+                    let el = rng.random_range(-0.9..0.05f32);
+                    [el.cos() * az.cos(), el.cos() * az.sin(), el.sin()]
+                };
+                let (fast, brute) = (s.cast(o, d, 100.0), brute_cast(s, o, d, 100.0));
+                match (fast, brute) {
+                    (None, None) => {}
+                    (Some((tf, cf)), Some((tb, cb))) => {
+                        // 1 mm: the ground reference is bisected in f64, the caster works in f32.
+                        assert!(
+                            (tf - tb).abs() < 1e-3 && cf == cb,
+                            "ray {o:?} {d:?}: grid {tf} {cf:?}, brute {tb} {cb:?}"
+                        );
+                        crop_hits += usize::from(cf == Class::Crop);
+                    }
+                    other => panic!("ray {o:?} {d:?}: grid vs brute {other:?}"),
+                }
+                rays += 1;
+            }
+            // The rays must actually exercise the plants, not only the ground.
+            assert!(crop_hits > 40, "{crop_hits} crop hits");
         }
     }
 }
