@@ -33,8 +33,18 @@ fn young_corn_within_table_1() {
 }
 
 #[test]
+fn grown_corn_within_table_1() {
+    default_detector_is_within_table_1("grown-corn");
+}
+
+#[test]
 fn young_soybean_within_table_1() {
     default_detector_is_within_table_1("young-soybean");
+}
+
+#[test]
+fn grown_soybean_within_table_1() {
+    default_detector_is_within_table_1("grown-soybean");
 }
 
 #[test]

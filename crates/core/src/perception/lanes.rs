@@ -343,7 +343,9 @@ impl Lanes {
             if i >= 0.0
                 && let Some(h) = self.hist.get_mut(i as usize)
             {
-                *h += 1.0;
+                // Weighted by height like the measure step: under a closed canopy, leaves arching into
+                // the inter-row are nearly as many as the returns of the crest, but lower.
+                *h += (p[2] as f64).powi(2) + HEIGHT_WEIGHT_FLOOR_M2;
             }
         }
     }
