@@ -74,6 +74,7 @@ struct Report {
     sim_realtime_factor: f64,
     sim_time_s: f64,
     sim_wall_s: f64,
+    sim_distance_m: f64,
     sim_includes: &'static str,
     mpc_solve_us_median: f64,
     mpc_horizon_steps: usize,
@@ -90,7 +91,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let (scans, points_per_scan) = record_scans(&scenario)?;
     let default = time_detector(DetectorConfig::default(), &scans, &scenario)?;
     let paper = time_detector(DetectorConfig::paper(), &scans, &scenario)?;
-    let (sim_time_s, sim_wall_s, sim_scans) = closed_loop(&scenario)?;
+    let (sim_time_s, sim_wall_s, sim_scans, sim_distance_m) = closed_loop(&scenario)?;
     let mpc = time_mpc()?;
 
     let report = Report {
@@ -100,6 +101,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         sim_realtime_factor: sim_time_s / sim_wall_s.max(1e-9),
         sim_time_s,
         sim_wall_s,
+        sim_distance_m,
         sim_includes: "ray-cast VLP-16 with motion skew, robot dynamics, wheel odometry 50 Hz, IMU 100 Hz, \
                        crop contacts, EKF, Navigator (detector + lane switching + MPC) at 10 Hz; one thread",
         mpc_solve_us_median: median(&mpc),
@@ -163,14 +165,15 @@ fn time_detector(
     Ok(times)
 }
 
-/// The closed loop for `LOOP_SIM_S` simulated seconds: (simulated s, wall s, scans).
-fn closed_loop(scenario: &Scenario) -> anyhow::Result<(f64, f64, usize)> {
+/// The closed loop for `LOOP_SIM_S` simulated seconds: (simulated s, wall s, scans, distance driven m).
+fn closed_loop(scenario: &Scenario) -> anyhow::Result<(f64, f64, usize, f64)> {
     let mut world = World::new(scenario).context("building the world")?;
     let mut nav = Navigator::new(NavigatorConfig::default()).context("navigator")?;
     let mut ekf = Ekf::new(nav.config().ekf.clone()).context("EKF")?;
     let mount = scenario.lidar.mount;
     let mut cmd = Twist2::ZERO;
     let mut scans = 0;
+    let start = world.robot().pose();
     let wall = Instant::now();
     while world.time_s() < LOOP_SIM_S {
         let step = world.step(cmd).context("world step")?;
@@ -188,7 +191,9 @@ fn closed_loop(scenario: &Scenario) -> anyhow::Result<(f64, f64, usize)> {
             cmd = out.cmd;
         }
     }
-    Ok((world.time_s(), wall.elapsed().as_secs_f64(), scans))
+    let wall_s = wall.elapsed().as_secs_f64();
+    let end = world.robot().pose();
+    Ok((world.time_s(), wall_s, scans, (end.x - start.x).hypot(end.y - start.y)))
 }
 
 /// Wall time of warm MPC solves following a straight row, µs.
@@ -275,8 +280,8 @@ fn print_table(r: &Report) {
         r.detect_paper_us_median, r.runs.detect_paper
     );
     println!(
-        "closed loop            {:>9.1} × real time ({:.1} s simulated in {:.2} s wall, {} scans)",
-        r.sim_realtime_factor, r.sim_time_s, r.sim_wall_s, r.runs.sim_scans
+        "closed loop            {:>9.1} × real time ({:.1} s simulated in {:.2} s wall, {} scans, {:.1} m driven)",
+        r.sim_realtime_factor, r.sim_time_s, r.sim_wall_s, r.runs.sim_scans, r.sim_distance_m
     );
     println!("  includes: {}", r.sim_includes);
     println!(
