@@ -13,7 +13,8 @@
 //! tabulates it.
 //!
 //! # The run
-//! The field is cut to end `length_m` past the start (when it is longer), so that a run drives
+//! The robot first stands still for [`STANDSTILL_S`] (as after power-up: the EKF calibrates the gyro
+//! bias against wheels that report zero; no scan is scored), then the driver sets off. The field is cut to end `length_m` past the start (when it is longer), so that a run drives
 //! `length_m` of rows and ends at a row end, and a short run does not build a 200 m field. The driver keeps
 //! going [`OVERRUN_M`] past the row end so that `EndOfRow` can be observed. Only scans taken while
 //! `base_link` is still among the rows (before the true row end) are scored; statuses are counted over
