@@ -20,9 +20,9 @@ use anyhow::Context;
 use croprow_core::control::mpc::{Mpc, MpcConfig};
 use croprow_core::control::path::Path;
 use croprow_core::navigator::{NavInput, Navigator, NavigatorConfig};
-use croprow_core::odometry::{Ekf, EkfConfig};
+use croprow_core::odometry::Ekf;
 use croprow_core::{DetectorConfig, Point3, Pose2, RowDetector, Scan, Twist2};
-use croprow_sim::experiment::detection::fuse_odometry;
+use croprow_sim::experiment::detection::{self, fuse_odometry};
 use croprow_sim::{Scenario, World};
 use serde::Serialize;
 
@@ -129,7 +129,7 @@ struct Recorded {
 fn record_scans(scenario: &Scenario) -> anyhow::Result<(Vec<Recorded>, f64)> {
     let mut world = World::new(scenario).context("building the world")?;
     let mut driver = world.driver().context("driver")?;
-    let mut ekf = Ekf::new(EkfConfig::default()).context("EKF")?;
+    let mut ekf = Ekf::new(detection::ekf_config()).context("EKF")?;
     ekf.reset(0.0, world.robot().pose()).context("EKF start")?;
     let mut scans = Vec::with_capacity(DETECT_SCANS);
     while scans.len() < DETECT_SCANS {

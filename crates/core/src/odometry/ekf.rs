@@ -376,6 +376,37 @@ mod tests {
         );
     }
 
+    /// Heading error after 5 s at rest then 60 s at 0.8 m/s straight, when the moving wheels report a
+    /// yaw rate 0.004 rad/s off (ruts, unequal tyres) and the gyro has a 0.005 rad/s bias.
+    fn heading_error_with_drifting_wheels(cfg: EkfConfig) -> f64 {
+        let mut ekf = Ekf::new(cfg).unwrap();
+        let mut yaw_truth = 0.0;
+        for i in 0..6500 {
+            let t = i as f64 * 0.01;
+            let moving = t >= 5.0;
+            let (v, w) = if moving { (0.8, 0.05 * (0.3 * t).sin()) } else { (0.0, 0.0) };
+            if i % 2 == 0 {
+                let wheel_w = if moving { w + 0.004 } else { 0.0 };
+                ekf.update_wheel(t, v, wheel_w).unwrap();
+            }
+            ekf.update_imu(t, w + 0.005).unwrap();
+            yaw_truth += w * 0.01;
+        }
+        wrap_angle(ekf.pose().yaw - yaw_truth).abs()
+    }
+
+    #[test]
+    fn speed_scaled_wheel_yaw_noise_keeps_the_gyro_bias_from_drifting_wheels() {
+        let white = heading_error_with_drifting_wheels(EkfConfig::default());
+        let tuned = heading_error_with_drifting_wheels(EkfConfig {
+            wheel_yaw_rate_per_speed: 0.5,
+            ..EkfConfig::default()
+        });
+        eprintln!("heading error after 60 s: white wheels {white:.4} rad, speed-scaled {tuned:.4} rad");
+        // The wheels' 0.004 rad/s over 60 s would turn the heading by 0.24 rad if the bias followed them.
+        assert!(tuned < 0.25 * white && tuned < 0.02, "tuned {tuned:.4} rad vs white {white:.4} rad");
+    }
+
     #[test]
     fn estimates_the_gyro_bias() {
         let (truth, ekf, _, _) = drive(1.0, 1.0, 0.02, 60.0);
