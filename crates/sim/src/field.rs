@@ -427,6 +427,17 @@ impl Shape {
 /// A corn plant: a stalk and arching strap leaves, alternating in one vertical plane (distichous).
 fn corn(s: &Shape, base: [f64; 3], h: f64, rng: &mut ChaCha8Rng, out: &mut Vec<Prim>) {
     out.push(Prim::cylinder(base[0], base[1], s.stalk_r_m, base[2], base[2] + 0.8 * h, Class::Crop));
+    // The whorl: the youngest leaves, still rolled and erect, make the top of the plant at the stalk, so
+    // that (as in a real field) the canopy crest runs along the row and the arching leaves hang below it
+    // in the inter-row. Two crossed upright blades, from 0.7 h to the top.
+    let turn = rng.random_range(0.0..PI);
+    let half_h = 0.15 * h;
+    let centre = [base[0], base[1], base[2] + h - half_h];
+    for az in [turn, turn + 0.5 * PI] {
+        let (sa, ca) = az.sin_cos();
+        let w = [ca * 0.5 * s.leaf_m, sa * 0.5 * s.leaf_m, 0.0];
+        out.push(Prim::patch(centre, [0.0, 0.0, half_h], w, false, Class::Crop));
+    }
     let n = rng.random_range(s.organs.0..=s.organs.1);
     // Field corn tends to turn its leaves across the row, towards the light of the inter-row.
     let plane = 0.5 * PI + rng.random_range(-0.8..0.8);
@@ -440,7 +451,8 @@ fn corn(s: &Shape, base: [f64; 3], h: f64, rng: &mut ChaCha8Rng, out: &mut Vec<P
         let seg = len / 3.0;
         let angles = [a0, a0 - bend, a0 - 2.0 * bend];
         let rise: f64 = angles.iter().take(2).map(|a| seg * a.sin().max(0.0)).sum();
-        let z_attach = (base[2] + h * (0.12 + 0.75 * f)).min(base[2] + h - rise).max(base[2] + 0.02);
+        // Leaves stay below the whorl: their arches top out at 0.85 h.
+        let z_attach = (base[2] + h * (0.12 + 0.75 * f)).min(base[2] + 0.85 * h - rise).max(base[2] + 0.02);
         let (sa, ca) = az.sin_cos();
         let side = [-sa, ca, 0.0];
         let mut p = [base[0], base[1], z_attach];
@@ -465,7 +477,7 @@ fn soybean(s: &Shape, base: [f64; 3], h: f64, rng: &mut ChaCha8Rng, out: &mut Ve
     let half_len = s.leaf_m;
     for _ in 0..n {
         let az = rng.random_range(0.0..TAU);
-        let r = radius * rng.random_range(0.05f64..1.0).sqrt();
+        let r = radius * rng.random_range(0.0f64..1.0).sqrt();
         let q = r / radius;
         // Dome: the top leaves reach the plant height, the outer ones hang lower.
         let z = base[2] + (h * (1.0 - 0.45 * q * q) - 0.3 * half_len).max(0.03);

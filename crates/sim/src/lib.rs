@@ -33,6 +33,7 @@
 #![warn(missing_docs)]
 
 pub mod driver;
+pub mod experiment;
 pub mod field;
 pub mod lidar;
 pub mod metrics;
