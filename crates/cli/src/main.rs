@@ -22,6 +22,8 @@ enum Command {
     DetectSim(cmd::detect_sim::Args),
     /// Run the detector over a ROS 2 recording (MCAP) and write one JSON line per scan.
     Detect(cmd::detect::Args),
+    /// Run a scenario closed loop (EKF, detector, MPC, lane switching) and write metrics, trajectory, plots.
+    Simulate(cmd::simulate::Args),
     /// Extract every crop row of a whole-field point-cloud map (PCD, PLY, LAS, text) as GeoJSON.
     Rows(cmd::rows::Args),
 }
@@ -29,10 +31,11 @@ enum Command {
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
-        None => anyhow::bail!("the default demo arrives with the closed loop; see `croprow --help`"),
+        None => cmd::demo::run(),
         Some(Command::Scenarios(a)) => cmd::scenarios::run(a),
         Some(Command::DetectSim(a)) => cmd::detect_sim::run(a),
         Some(Command::Detect(a)) => cmd::detect::run(a),
         Some(Command::Rows(a)) => cmd::rows::run(a),
+        Some(Command::Simulate(a)) => cmd::simulate::run(a),
     }
 }

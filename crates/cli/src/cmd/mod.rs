@@ -1,6 +1,8 @@
 //! One module per subcommand: argument struct + `run`.
 
+pub mod demo;
 pub mod detect;
 pub mod detect_sim;
 pub mod rows;
 pub mod scenarios;
+pub mod simulate;
