@@ -154,6 +154,8 @@ pub struct Sample {
     pub distance_m: f64,
     /// Detector status, when a scan came with this step.
     pub detection: Option<RowStatus>,
+    /// Plants run over since the start.
+    pub crop_contacts: usize,
 }
 
 /// The scores of a run; see the module docs for what each one covers.
@@ -595,6 +597,7 @@ impl ClosedLoop {
             heading_err_rad: heading,
             distance_m: self.distance_m,
             detection: out.detection.map(|d| d.status),
+            crop_contacts: self.world.crop_contacts(),
         });
     }
 

@@ -238,12 +238,12 @@ pub fn write_outputs(record: &Run, detections: &[Detection], out: &Path) -> Resu
 /// The trajectory as CSV (header row; field frame = `odom` at the start; SI units).
 fn trajectory_csv(samples: &[Sample]) -> String {
     let mut s = String::from(
-        "t_s,field_x_m,field_y_m,field_yaw_rad,odom_x_m,odom_y_m,odom_yaw_rad,cmd_v_mps,cmd_omega_radps,mode,lane,cross_track_m,heading_err_rad,distance_m,detection\n",
+        "t_s,field_x_m,field_y_m,field_yaw_rad,odom_x_m,odom_y_m,odom_yaw_rad,cmd_v_mps,cmd_omega_radps,mode,lane,cross_track_m,heading_err_rad,distance_m,detection,crop_contacts\n",
     );
     for p in samples {
         let _ = writeln!(
             s,
-            "{:.3},{:.4},{:.4},{:.5},{:.4},{:.4},{:.5},{:.4},{:.4},{},{},{:.4},{:.5},{:.3},{}",
+            "{:.3},{:.4},{:.4},{:.5},{:.4},{:.4},{:.5},{:.4},{:.4},{},{},{:.4},{:.5},{:.3},{},{}",
             p.t_s,
             p.truth.x,
             p.truth.y,
@@ -259,6 +259,7 @@ fn trajectory_csv(samples: &[Sample]) -> String {
             p.heading_err_rad,
             p.distance_m,
             p.detection.map_or("", |d| d.as_str()),
+            p.crop_contacts,
         );
     }
     s

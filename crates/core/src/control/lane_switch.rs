@@ -37,7 +37,7 @@ use std::f64::consts::FRAC_PI_2;
 
 use serde::{Deserialize, Serialize};
 
-use crate::control::path::Path;
+use crate::control::path::{Path, Segment};
 use crate::control::reference::{Reference, ReferenceConfig};
 use crate::error::{ConfigError, check_range};
 use crate::geometry::{Pose2, wrap_angle};
@@ -103,7 +103,8 @@ pub struct LaneSwitchConfig {
     /// than about 1.6 m ahead of `base_link`, and the end estimate wobbles by a few decimetres.
     pub end_approach_m: f64,
     /// Largest lateral offset between the detected and the planned centre line of a new lane, m.
-    /// Default 0.25 (a third of a row spacing: a neighbouring lane is 0.75 m or more away).
+    /// Default 0.3 (under half of the 0.75 m to a neighbouring lane, so it is never mistaken for this
+    /// one; a headland turn on skid-steer odometry ends up to ~0.3 m off its plan).
     pub entry_lateral_tolerance_m: f64,
     /// Largest heading difference between detected and planned centre line, and largest heading
     /// error of the robot, to confirm a new lane, rad. Default 0.15.
@@ -140,7 +141,7 @@ impl Default for LaneSwitchConfig {
             max_headland_excursion_m: 1.5,
             max_blind_distance_m: 1.0,
             end_approach_m: 2.5,
-            entry_lateral_tolerance_m: 0.25,
+            entry_lateral_tolerance_m: 0.3,
             entry_heading_tolerance_rad: 0.15,
             entry_alignment_m: 0.1,
             entry_confirmations: 3,
@@ -601,6 +602,27 @@ impl LaneSwitcher {
         self.row_end = None;
     }
 
+    /// Moves the entry straight onto the detected centre line `c` (`odom`): odometry drifts by
+    /// decimetres over a headland turn, so the robot aligns with the lane it sees, not the one it
+    /// planned, before its wheels reach the crop. Only called for a detection that agrees with the
+    /// plan (within `entry_lateral_tolerance_m`, under half a lane away).
+    fn anchor_entry(&mut self, entry: &Segment, c: &Pose2) {
+        let rel = c.relative(&entry.start);
+        // entry.start expressed on the detected line: its foot point, with the line's heading.
+        let foot = c.compose(&Pose2::new(rel.x, 0.0, 0.0));
+        let mut segments = [*entry; 3];
+        let n = self.turn.segments().len();
+        if n != 4 {
+            return;
+        }
+        segments.copy_from_slice(&self.turn.segments()[..3]);
+        self.turn.clear();
+        for seg in segments {
+            self.turn.push(seg.start, seg.length_m, seg.curvature_per_m);
+        }
+        self.turn.push(foot, entry.length_m, 0.0);
+    }
+
     fn enter(&mut self, odom: &Pose2, detection: Option<&Detection>) {
         let f = self.turn.project(odom, self.s_hint_m);
         self.s_hint_m = f.s_m;
@@ -620,6 +642,7 @@ impl LaneSwitcher {
             {
                 self.agree = self.agree.saturating_add(1);
                 self.disagree = 0;
+                self.anchor_entry(&entry, &c);
             } else {
                 self.disagree = self.disagree.saturating_add(1);
                 self.agree = 0;

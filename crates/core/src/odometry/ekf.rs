@@ -45,11 +45,6 @@ pub struct EkfConfig {
     /// Relative standard deviation of the wheel yaw rate that grows with it (skid-steer slip: the
     /// faster the turn, the more the wheels scrub), dimensionless. Default 0.3.
     pub wheel_yaw_rate_slip: f64,
-    /// Extra standard deviation of a wheel-odometry yaw rate while the robot drives (|v| above
-    /// 0.05 m/s), rad/s. Ruts and clods turn a moving skid-steer without its encoders seeing it,
-    /// an error correlated over about a second that a white-noise model must inflate; a robot at rest
-    /// is not turned, so standing still its wheels still pin the gyro bias. Default 0.1.
-    pub wheel_yaw_rate_drive_std_radps: f64,
     /// Standard deviation of a gyro z sample, rad/s. Default 0.005.
     pub gyro_std_radps: f64,
     /// Initial standard deviation of the gyro bias, rad/s. Default 0.02.
@@ -67,7 +62,6 @@ impl Default for EkfConfig {
             wheel_speed_std_mps: 0.02,
             wheel_yaw_rate_std_radps: 0.02,
             wheel_yaw_rate_slip: 0.3,
-            wheel_yaw_rate_drive_std_radps: 0.1,
             gyro_std_radps: 0.005,
             initial_bias_std_radps: 0.02,
             max_gap_s: 0.5,
@@ -84,7 +78,6 @@ impl EkfConfig {
         check_range("ekf.wheel_speed_std_mps", self.wheel_speed_std_mps, 1e-6, 10.0)?;
         check_range("ekf.wheel_yaw_rate_std_radps", self.wheel_yaw_rate_std_radps, 1e-6, 10.0)?;
         check_range("ekf.wheel_yaw_rate_slip", self.wheel_yaw_rate_slip, 0.0, 10.0)?;
-        check_range("ekf.wheel_yaw_rate_drive_std_radps", self.wheel_yaw_rate_drive_std_radps, 0.0, 10.0)?;
         check_range("ekf.gyro_std_radps", self.gyro_std_radps, 1e-6, 10.0)?;
         check_range("ekf.initial_bias_std_radps", self.initial_bias_std_radps, 0.0, 1.0)?;
         check_range("ekf.max_gap_s", self.max_gap_s, 1e-3, 60.0)?;
@@ -237,12 +230,9 @@ impl Ekf {
     /// Fuses a wheel-odometry twist (`v` m/s, `omega` rad/s) with the configured variances; the yaw
     /// rate's grows with `|omega|` (`ekf.wheel_yaw_rate_slip`), so turns barely disturb the bias.
     pub fn update_wheel(&mut self, stamp_s: f64, v: f64, omega: f64) -> Result<(), EkfError> {
-        let driving = if v.abs() > 0.05 { self.cfg.wheel_yaw_rate_drive_std_radps.powi(2) } else { 0.0 };
         let var = [
             self.cfg.wheel_speed_std_mps.powi(2),
-            self.cfg.wheel_yaw_rate_std_radps.powi(2)
-                + (self.cfg.wheel_yaw_rate_slip * omega).powi(2)
-                + driving,
+            self.cfg.wheel_yaw_rate_std_radps.powi(2) + (self.cfg.wheel_yaw_rate_slip * omega).powi(2),
         ];
         self.update_wheel_with_variance(stamp_s, v, omega, var)
     }
