@@ -26,6 +26,8 @@ enum Command {
     Simulate(cmd::simulate::Args),
     /// Extract every crop row of a whole-field point-cloud map (PCD, PLY, LAS, text) as GeoJSON.
     Rows(cmd::rows::Args),
+    /// Quick benchmark of the detector, the closed-loop simulation and the MPC (`--json` for one object).
+    Bench(cmd::bench::Args),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -37,5 +39,6 @@ fn main() -> anyhow::Result<()> {
         Some(Command::Detect(a)) => cmd::detect::run(a),
         Some(Command::Rows(a)) => cmd::rows::run(a),
         Some(Command::Simulate(a)) => cmd::simulate::run(a),
+        Some(Command::Bench(a)) => cmd::bench::run(a),
     }
 }

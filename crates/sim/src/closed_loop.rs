@@ -29,11 +29,10 @@
 //! * every command is checked finite and inside the MPC's speed and yaw-rate bounds.
 //!
 //! ```no_run
-//! use croprow_core::navigator::NavigatorConfig;
 //! use croprow_sim::Scenario;
 //! use croprow_sim::closed_loop::{self, RunConfig};
 //! let scenario = Scenario::builtin("full-field").unwrap();
-//! let run = closed_loop::run(&scenario, NavigatorConfig::default(), RunConfig::default(), |_| {}).unwrap();
+//! let run = closed_loop::run(&scenario, closed_loop::sim_navigator(), RunConfig::default(), |_| {}).unwrap();
 //! assert_eq!(run.metrics.rows_covered, 16);
 //! ```
 
@@ -245,6 +244,12 @@ pub struct Tick<'a> {
     pub odom_twist: Twist2,
     /// The navigator's output, when it ran in this step.
     pub nav: Option<NavOutput>,
+}
+
+/// The navigator configuration for the simulated robot: the defaults, with the EKF tuned to the
+/// simulated skid-steer ([`crate::experiment::detection::ekf_config`]).
+pub fn sim_navigator() -> NavigatorConfig {
+    NavigatorConfig { ekf: crate::experiment::detection::ekf_config(), ..NavigatorConfig::default() }
 }
 
 /// The navigator configuration a scenario's run uses: `base` with the lane-switch geometry of the

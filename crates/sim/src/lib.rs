@@ -34,6 +34,7 @@
 
 pub mod closed_loop;
 pub mod driver;
+pub mod experiment;
 pub mod field;
 pub mod lidar;
 pub mod metrics;

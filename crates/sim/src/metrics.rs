@@ -8,8 +8,10 @@
 //! - the **true row** is the first row centre curve on that side: the row whose centre curve crosses the
 //!   `base_link` y axis (x = 0) at the smallest positive offset (left) or the largest negative one (right);
 //! - the **distance error** is `|y_pred(0) − y_true(0)|`: the lateral gap, along the `base_link` y axis,
-//!   between the predicted line extended to x = 0 and the true curve's crossing of that axis;
-//! - the **angular error** is `|wrap(atan2(y2 − y1, x2 − x1) − θ_true)|`, with `θ_true` the direction of the
+//!   between the predicted row at x = 0 (`RowEstimate::offset_m`; the line extended to x = 0 when that is
+//!   not finite) and the true curve's crossing of that axis;
+//! - the **angular error** is `|wrap(θ_pred − θ_true)|`, with `θ_pred` the predicted row's direction at the
+//!   robot (`RowEstimate::heading_rad`, else `atan2(y2 − y1, x2 − x1)`) and `θ_true` the direction of the
 //!   true curve at its crossing, in `base_link`;
 //! - the prediction **picked the wrong row** when its `y_pred(0)` lies closer to another true row than to the
 //!   true one (more than half a row spacing off).
@@ -70,17 +72,23 @@ pub fn neighbour_rows(field: &Field, pose: &Pose2) -> (Option<TrueRow>, Option<T
     (left, right)
 }
 
-/// The predicted line's lateral offset at x = 0 and its direction, both in `base_link`.
+/// The predicted row's lateral offset at x = 0 and its direction there, both in `base_link`: the
+/// estimate's own `offset_m` and `heading_rad` (what the controller uses) when finite, else the line
+/// extended to x = 0. For a straight-line estimate both are the same; for a curved one the segment is a
+/// chord whose direction differs from the row's direction at the robot by about half the curvature
+/// times its length, which is not the detector's estimate of that direction.
 fn line_at_origin(est: &RowEstimate) -> Option<(f64, f64)> {
+    if est.offset_m.is_finite() && est.heading_rad.is_finite() {
+        return Some((est.offset_m, est.heading_rad));
+    }
     let [x1, y1, x2, y2] = est.line;
     if !est.line.iter().all(|v| v.is_finite()) {
         return None;
     }
     let (dx, dy) = (x2 - x1, y2 - y1);
     if dx.abs() < 1e-9 {
-        // A degenerate or sideways segment has no offset at x = 0: fall back to the estimate's own fields.
-        return (est.offset_m.is_finite() && est.heading_rad.is_finite())
-            .then_some((est.offset_m, est.heading_rad));
+        // A degenerate or sideways segment has no offset at x = 0.
+        return None;
     }
     Some((y1 - x1 * dy / dx, dy.atan2(dx)))
 }
@@ -285,6 +293,23 @@ mod tests {
         // A prediction on row 9 (0.75 m further) is the wrong row.
         let e = row_error(&f, &pose, 8, &est([0.0, 1.105, 3.0, 1.105])).unwrap();
         assert!(e.wrong_row);
+    }
+
+    #[test]
+    fn a_curved_estimate_is_scored_by_its_direction_at_the_robot() {
+        let f = straight();
+        let pose = Pose2::new(5.0, 5.625, 0.0);
+        // Right at the robot and parallel to the row, bending away further on: the chord to x = 4 turns by
+        // atan(0.16 / 4) = 2.3°, but the row's direction at the robot is exact (tolerance 1e-12: arithmetic).
+        let curved = RowEstimate {
+            line: [0.0, 0.375, 4.0, 0.375 + 0.16],
+            offset_m: 0.375,
+            heading_rad: 0.0,
+            curvature_per_m: 0.02,
+            confidence: 1.0,
+        };
+        let e = row_error(&f, &pose, 8, &curved).unwrap();
+        assert!(e.distance_m < 1e-12 && e.angle_rad < 1e-12, "{e:?}");
     }
 
     #[test]

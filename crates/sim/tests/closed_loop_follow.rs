@@ -2,7 +2,6 @@
 //! paper's Table I cross-track means (Sec. V-B) and our aims (< 1 cm straight, < 3 cm curved).
 
 use croprow_core::control::lane_switch::Mode;
-use croprow_core::navigator::NavigatorConfig;
 use croprow_sim::Scenario;
 use croprow_sim::closed_loop::{self, Run, RunConfig};
 
@@ -11,7 +10,7 @@ fn follow(name: &str, length_m: f64) -> Run {
     let mut s = Scenario::builtin(name).unwrap();
     s.field.length_m = length_m;
     let cfg = RunConfig { lanes: 1, ..RunConfig::default() };
-    closed_loop::run(&s, NavigatorConfig::default(), cfg, |_| {}).unwrap()
+    closed_loop::run(&s, closed_loop::sim_navigator(), cfg, |_| {}).unwrap()
 }
 
 /// Asserts a clean single-lane run with a cross-track mean under `limit_m`.
@@ -55,7 +54,7 @@ fn debug_trace() {
         sc.robot.slip_variation = 0.0;
     }
     let cfg = RunConfig { lanes: 1, ..RunConfig::default() };
-    let mut nc = NavigatorConfig::default();
+    let mut nc = closed_loop::sim_navigator();
     if let Ok(v) = std::env::var("WYAW") {
         nc.ekf.wheel_yaw_rate_std_radps = v.parse().unwrap();
     }
@@ -92,7 +91,7 @@ fn debug_detect() {
     if std::env::var("PERFECT").is_ok() {
         sc.sensors.perfect_odometry = true;
     }
-    let mut nc = NavigatorConfig::default();
+    let mut nc = closed_loop::sim_navigator();
     if std::env::var("PAPER").is_ok() {
         nc.detector = croprow_core::DetectorConfig::paper();
     }

@@ -45,6 +45,13 @@ pub struct EkfConfig {
     /// Relative standard deviation of the wheel yaw rate that grows with it (skid-steer slip: the
     /// faster the turn, the more the wheels scrub), dimensionless. Default 0.3.
     pub wheel_yaw_rate_slip: f64,
+    /// Standard deviation of the wheel yaw rate per unit forward speed, rad/s per m/s. Ruts, tyre scrub
+    /// and unequal tyre radii make a moving skid-steer's wheel yaw rate wander slowly (seconds); fused as
+    /// white noise it would drag the gyro bias along and the heading with it. With this term the heading
+    /// comes from the gyro while driving, and the wheels calibrate the gyro bias mainly at rest (start
+    /// at rest for a few seconds). Default 0 (wheel yaw-rate errors taken as white); 0.5 matches the
+    /// simulated skid-steer (`croprow_sim::experiment::detection::ekf_config`).
+    pub wheel_yaw_rate_per_speed: f64,
     /// Standard deviation of a gyro z sample, rad/s. Default 0.005.
     pub gyro_std_radps: f64,
     /// Initial standard deviation of the gyro bias, rad/s. Default 0.02.
@@ -62,6 +69,7 @@ impl Default for EkfConfig {
             wheel_speed_std_mps: 0.02,
             wheel_yaw_rate_std_radps: 0.02,
             wheel_yaw_rate_slip: 0.3,
+            wheel_yaw_rate_per_speed: 0.0,
             gyro_std_radps: 0.005,
             initial_bias_std_radps: 0.02,
             max_gap_s: 0.5,
@@ -78,6 +86,7 @@ impl EkfConfig {
         check_range("ekf.wheel_speed_std_mps", self.wheel_speed_std_mps, 1e-6, 10.0)?;
         check_range("ekf.wheel_yaw_rate_std_radps", self.wheel_yaw_rate_std_radps, 1e-6, 10.0)?;
         check_range("ekf.wheel_yaw_rate_slip", self.wheel_yaw_rate_slip, 0.0, 10.0)?;
+        check_range("ekf.wheel_yaw_rate_per_speed", self.wheel_yaw_rate_per_speed, 0.0, 100.0)?;
         check_range("ekf.gyro_std_radps", self.gyro_std_radps, 1e-6, 10.0)?;
         check_range("ekf.initial_bias_std_radps", self.initial_bias_std_radps, 0.0, 1.0)?;
         check_range("ekf.max_gap_s", self.max_gap_s, 1e-3, 60.0)?;
@@ -228,11 +237,14 @@ impl Ekf {
     }
 
     /// Fuses a wheel-odometry twist (`v` m/s, `omega` rad/s) with the configured variances; the yaw
-    /// rate's grows with `|omega|` (`ekf.wheel_yaw_rate_slip`), so turns barely disturb the bias.
+    /// rate's grows with `|omega|` (`ekf.wheel_yaw_rate_slip`) and `|v|` (`ekf.wheel_yaw_rate_per_speed`),
+    /// so turns and driving barely disturb the bias.
     pub fn update_wheel(&mut self, stamp_s: f64, v: f64, omega: f64) -> Result<(), EkfError> {
         let var = [
             self.cfg.wheel_speed_std_mps.powi(2),
-            self.cfg.wheel_yaw_rate_std_radps.powi(2) + (self.cfg.wheel_yaw_rate_slip * omega).powi(2),
+            self.cfg.wheel_yaw_rate_std_radps.powi(2)
+                + (self.cfg.wheel_yaw_rate_slip * omega).powi(2)
+                + (self.cfg.wheel_yaw_rate_per_speed * v).powi(2),
         ];
         self.update_wheel_with_variance(stamp_s, v, omega, var)
     }
