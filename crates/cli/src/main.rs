@@ -24,6 +24,8 @@ enum Command {
     Detect(cmd::detect::Args),
     /// Run a scenario closed loop (EKF, detector, MPC, lane switching) and write metrics, trajectory, plots.
     Simulate(cmd::simulate::Args),
+    /// Table I of the paper in simulation (detection and following, every field) next to its numbers.
+    Evaluate(cmd::evaluate::Args),
     /// Extract every crop row of a whole-field point-cloud map (PCD, PLY, LAS, text) as GeoJSON.
     Rows(cmd::rows::Args),
     /// Quick benchmark of the detector, the closed-loop simulation and the MPC (`--json` for one object).
@@ -39,6 +41,7 @@ fn main() -> anyhow::Result<()> {
         Some(Command::Detect(a)) => cmd::detect::run(a),
         Some(Command::Rows(a)) => cmd::rows::run(a),
         Some(Command::Simulate(a)) => cmd::simulate::run(a),
+        Some(Command::Evaluate(a)) => cmd::evaluate::run(a),
         Some(Command::Bench(a)) => cmd::bench::run(a),
     }
 }

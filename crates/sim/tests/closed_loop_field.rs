@@ -9,7 +9,8 @@ use croprow_sim::closed_loop::{self, RunConfig};
 #[test]
 fn full_field_is_covered_without_crop_contact() {
     let scenario = Scenario::builtin("full-field").unwrap();
-    let run = closed_loop::run(&scenario, closed_loop::sim_navigator(), RunConfig::default(), |_| {}).unwrap();
+    let run =
+        closed_loop::run(&scenario, closed_loop::sim_navigator(), RunConfig::default(), |_| {}).unwrap();
     let m = &run.metrics;
     eprintln!("{m:?}");
     assert_eq!(m.final_mode, Mode::Done, "{m:?}");

@@ -4,6 +4,7 @@ pub mod bench;
 pub mod demo;
 pub mod detect;
 pub mod detect_sim;
+pub mod evaluate;
 pub mod rows;
 pub mod scenarios;
 pub mod simulate;

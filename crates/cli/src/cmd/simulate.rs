@@ -79,7 +79,11 @@ impl Setup {
             let text = fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
             Scenario::from_toml_str(&text).with_context(|| format!("scenario {}", path.display()))?
         };
-        let mut setup = Self { scenario, navigator: croprow_sim::closed_loop::sim_navigator(), run: RunConfig::default() };
+        let mut setup = Self {
+            scenario,
+            navigator: croprow_sim::closed_loop::sim_navigator(),
+            run: RunConfig::default(),
+        };
         if let Some(seed) = seed {
             setup.scenario.seed = seed;
         }
