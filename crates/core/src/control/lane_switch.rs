@@ -103,8 +103,7 @@ pub struct LaneSwitchConfig {
     /// than about 1.6 m ahead of `base_link`, and the end estimate wobbles by a few decimetres.
     pub end_approach_m: f64,
     /// Largest lateral offset between the detected and the planned centre line of a new lane, m.
-    /// Default 0.3 (under half of the 0.75 m to a neighbouring lane, so it is never mistaken for this
-    /// one; a headland turn on skid-steer odometry ends up to ~0.3 m off its plan).
+    /// Default 0.25 (a third of a row spacing: a neighbouring lane is 0.75 m or more away).
     pub entry_lateral_tolerance_m: f64,
     /// Largest heading difference between detected and planned centre line, and largest heading
     /// error of the robot, to confirm a new lane, rad. Default 0.15.
@@ -141,7 +140,7 @@ impl Default for LaneSwitchConfig {
             max_headland_excursion_m: 1.5,
             max_blind_distance_m: 1.0,
             end_approach_m: 2.5,
-            entry_lateral_tolerance_m: 0.3,
+            entry_lateral_tolerance_m: 0.25,
             entry_heading_tolerance_rad: 0.15,
             entry_alignment_m: 0.1,
             entry_confirmations: 3,
