@@ -209,8 +209,8 @@ pub struct Run {
     pub metrics: Metrics,
     /// One sample per control step.
     pub samples: Vec<Sample>,
-    /// Detected rows `[x1, y1, x2, y2]` mapped into `odom` with the pose the robot believed at the
-    /// scan (what it saw, drift included), m.
+    /// Detected rows `[x1, y1, x2, y2]` (from `base_link`) placed in the field frame with the true
+    /// pose at their scan, m: they show the detector's error, not the odometry's drift.
     pub detected_rows: Vec<[f64; 4]>,
     /// True row centre polylines `[x, y]` in the field frame, every 0.5 m, m.
     pub true_rows: Vec<Vec<[f64; 2]>>,
@@ -556,8 +556,8 @@ impl ClosedLoop {
             self.scans += 1;
             for row in [d.left, d.right].into_iter().flatten() {
                 let [x1, y1, x2, y2] = row.line;
-                let (a, b) = odom.transform_point(x1, y1);
-                let (c, e) = odom.transform_point(x2, y2);
+                let (a, b) = truth.transform_point(x1, y1);
+                let (c, e) = truth.transform_point(x2, y2);
                 if [a, b, c, e].iter().all(|v| v.is_finite()) {
                     self.detected_rows.push([a, b, c, e]);
                 }

@@ -18,9 +18,10 @@ pub fn run() -> Result<()> {
     );
     let setup = Setup::load("full-field", None, &[])?;
     let out = Path::new(OUT);
-    let mcap = out.join("run.mcap");
-    let record = simulate(&setup, out, Some(&mcap))?;
-    print_summary(&record, out, Some(&mcap));
+    // No recording by default: ten minutes of full VLP-16 scans make about 1 GB of MCAP
+    // (`croprow simulate --scenario full-field --out DIR --mcap FILE` writes one).
+    let record = simulate(&setup, out, None)?;
+    print_summary(&record, out, None);
     println!("  plots: {} and {}", out.join("top_view.png").display(), out.join("errors.png").display());
     Ok(())
 }

@@ -207,7 +207,7 @@ pub fn write_outputs(record: &Run, detections: &[Detection], out: &Path) -> Resu
     }
     fs::write(out.join("detections.jsonl"), lines).context("writing detections.jsonl")?;
     let trajectory: Vec<[f64; 2]> = record.samples.iter().map(|s| [s.truth.x, s.truth.y]).collect();
-    let title = format!("{}: trajectory (black) and detected rows", record.scenario);
+    let title = format!("{}: true trajectory and detected rows (field frame)", record.scenario);
     plot::top_view(
         &out.join("top_view.png"),
         &plot::TopView {
