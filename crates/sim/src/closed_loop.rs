@@ -708,3 +708,55 @@ pub fn run(
     }
     Ok(lp.finish())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn absurd_run_settings_are_refused_by_name() {
+        let e = RunConfig { control_period_s: 0.0, ..RunConfig::default() }.validate().unwrap_err();
+        assert!(e.to_string().contains("run.control_period_s"), "{e}");
+        let e = RunConfig { lidar_blackout_after_m: Some(f64::NAN), ..RunConfig::default() }
+            .validate()
+            .unwrap_err();
+        assert!(e.to_string().contains("run.lidar_blackout_after_m"), "{e}");
+    }
+
+    #[test]
+    fn whole_field_coverage_plans_every_lane_pair_to_the_edge() {
+        // full-field: 16 rows, start lane 14 (rows 14 and 15), first turn right (towards row 0).
+        let s = Scenario::builtin("full-field").unwrap();
+        let cfg = navigator_config(&s, &sim_navigator(), &RunConfig::default());
+        assert_eq!(cfg.lane_switch.lanes, 8);
+        assert_eq!(cfg.lane_switch.row_spacing_m, s.field.row_spacing_m);
+        let one = navigator_config(&s, &sim_navigator(), &RunConfig { lanes: 1, ..RunConfig::default() });
+        assert_eq!(one.lane_switch.lanes, 1);
+    }
+
+    #[test]
+    fn errors_are_measured_to_the_lane_the_navigator_drives() {
+        let mut s = Scenario::builtin("full-field").unwrap();
+        s.field.length_m = 4.0;
+        let mut lp = ClosedLoop::new(&s, &sim_navigator(), RunConfig::default()).unwrap();
+        // Navigator lane k is field lane 14 - 2k; while turning, the next one.
+        assert_eq!(lp.target_lane(0), Some(14));
+        assert_eq!(lp.target_lane(3), Some(8));
+        lp.mode = Mode::Turning;
+        assert_eq!(lp.target_lane(0), Some(12));
+        assert_eq!(lp.target_lane(7), None);
+    }
+
+    #[test]
+    fn a_robot_that_sees_no_rows_times_out_at_rest() {
+        // Rows too far apart for the detector's search (spacing 1.5 m max): it never acquires.
+        let mut s = Scenario::builtin("young-corn").unwrap();
+        s.field.length_m = 6.0;
+        s.field.row_spacing_m = 3.0;
+        let cfg = RunConfig { lanes: 1, max_time_s: 5.0, ..RunConfig::default() };
+        let run = run(&s, sim_navigator(), cfg, |_| {}).unwrap();
+        assert!(run.metrics.timed_out, "{:?}", run.metrics);
+        assert!(run.metrics.distance_m < 0.05, "{:?}", run.metrics);
+        assert_eq!(run.metrics.command_violations, 0);
+    }
+}

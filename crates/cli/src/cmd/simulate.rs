@@ -372,3 +372,32 @@ impl Recorder {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn overrides_reach_the_scenario_the_navigator_and_the_run() {
+        let sets = ["field.length_m=12".to_owned(), "mpc.horizon_steps=25".into(), "run.lanes=1".into()];
+        let s = Setup::load("young-corn", Some(9), &sets).unwrap();
+        assert_eq!((s.scenario.field.length_m, s.scenario.seed), (12.0, 9));
+        assert_eq!(s.navigator.mpc.horizon_steps, 25);
+        assert_eq!(s.run.lanes, 1);
+        // Bare words are strings; optional keys can be set.
+        let s =
+            Setup::load("young-corn", None, &["detector.mode=paper".into(), "start.lane=3".into()]).unwrap();
+        assert_eq!(s.navigator.detector.mode, croprow_core::DetectorMode::Paper);
+        assert_eq!(s.scenario.lane(), 3);
+    }
+
+    #[test]
+    fn bad_overrides_name_the_key() {
+        let e = Setup::load("young-corn", None, &["field.lenght_m=3".into()]).unwrap_err();
+        assert!(format!("{e:#}").contains("lenght_m"), "{e:#}");
+        let e = Setup::load("young-corn", None, &["mpc.horizon_steps=-1".into()]).unwrap_err();
+        assert!(format!("{e:#}").contains("mpc.horizon_steps"), "{e:#}");
+        assert!(Setup::load("young-corn", None, &["nokey".into()]).is_err());
+        assert!(Setup::load("no-such-field", None, &[]).is_err());
+    }
+}
