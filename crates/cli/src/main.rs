@@ -22,6 +22,10 @@ enum Command {
     DetectSim(cmd::detect_sim::Args),
     /// Run the detector over a ROS 2 recording (MCAP) and write one JSON line per scan.
     Detect(cmd::detect::Args),
+    /// Run a scenario closed loop (EKF, detector, MPC, lane switching) and write metrics, trajectory, plots.
+    Simulate(cmd::simulate::Args),
+    /// Table I of the paper in simulation (detection and following, every field) next to its numbers.
+    Evaluate(cmd::evaluate::Args),
     /// Extract every crop row of a whole-field point-cloud map (PCD, PLY, LAS, text) as GeoJSON.
     Rows(cmd::rows::Args),
     /// Quick benchmark of the detector, the closed-loop simulation and the MPC (`--json` for one object).
@@ -31,11 +35,13 @@ enum Command {
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
-        None => anyhow::bail!("the default demo arrives with the closed loop; see `croprow --help`"),
+        None => cmd::demo::run(),
         Some(Command::Scenarios(a)) => cmd::scenarios::run(a),
         Some(Command::DetectSim(a)) => cmd::detect_sim::run(a),
         Some(Command::Detect(a)) => cmd::detect::run(a),
         Some(Command::Rows(a)) => cmd::rows::run(a),
+        Some(Command::Simulate(a)) => cmd::simulate::run(a),
+        Some(Command::Evaluate(a)) => cmd::evaluate::run(a),
         Some(Command::Bench(a)) => cmd::bench::run(a),
     }
 }

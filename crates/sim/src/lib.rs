@@ -32,6 +32,7 @@
 //! ```
 #![warn(missing_docs)]
 
+pub mod closed_loop;
 pub mod driver;
 pub mod experiment;
 pub mod field;
@@ -44,6 +45,7 @@ pub mod sensors;
 pub mod terrain;
 pub mod world;
 
+pub use closed_loop::{ClosedLoop, Metrics, Run, RunConfig, RunError};
 pub use driver::{Driver, DriverConfig};
 pub use field::{Crop, Field, FieldConfig, Stage, Stem};
 pub use lidar::{BodyPose, Lidar, LidarConfig, ScanBuffer};

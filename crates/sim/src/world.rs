@@ -99,6 +99,9 @@ pub struct World {
     fired: usize,
     filling: ScanBuffer,
     done: ScanBuffer,
+    /// Stamp and true pose of the revolution in `done`.
+    last_scan_stamp_s: f64,
+    last_scan_truth: BodyPose,
 }
 
 impl World {
@@ -156,6 +159,8 @@ impl World {
                 classes: Vec::with_capacity(per_scan),
             },
             done: ScanBuffer { points: Vec::with_capacity(per_scan), classes: Vec::with_capacity(per_scan) },
+            last_scan_stamp_s: 0.0,
+            last_scan_truth: BodyPose::default(),
         })
     }
 
@@ -194,6 +199,17 @@ impl World {
         self.damage.count()
     }
 
+    /// The last completed LiDAR revolution (`None` before the first): the scan a [`Step`] returned,
+    /// still readable after the step's borrow ended (e.g. to score it against the field first).
+    pub fn last_scan(&self) -> Option<ScanView<'_>> {
+        (self.sweep_start_s > 0.0).then(|| ScanView {
+            stamp_s: self.last_scan_stamp_s,
+            points: &self.done.points,
+            classes: &self.done.classes,
+            truth: self.last_scan_truth,
+        })
+    }
+
     /// Advances the world by one time step under `cmd`. A non-finite command is refused and nothing moves.
     pub fn step(&mut self, cmd: Twist2) -> Result<Step<'_>, StepError> {
         let dt = self.config.dt_s;
@@ -223,6 +239,8 @@ impl World {
             self.filling.clear();
             self.fired = 0;
             self.sweep_start_s += period;
+            self.last_scan_stamp_s = now;
+            self.last_scan_truth = body;
             completed = true;
         }
         let scan = completed.then(|| ScanView {

@@ -1,7 +1,10 @@
 //! One module per subcommand: argument struct + `run`.
 
 pub mod bench;
+pub mod demo;
 pub mod detect;
 pub mod detect_sim;
+pub mod evaluate;
 pub mod rows;
 pub mod scenarios;
+pub mod simulate;

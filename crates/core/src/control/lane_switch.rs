@@ -37,7 +37,7 @@ use std::f64::consts::FRAC_PI_2;
 
 use serde::{Deserialize, Serialize};
 
-use crate::control::path::Path;
+use crate::control::path::{Path, Segment};
 use crate::control::reference::{Reference, ReferenceConfig};
 use crate::error::{ConfigError, check_range};
 use crate::geometry::{Pose2, wrap_angle};
@@ -601,6 +601,27 @@ impl LaneSwitcher {
         self.row_end = None;
     }
 
+    /// Moves the entry straight onto the detected centre line `c` (`odom`): odometry drifts by
+    /// decimetres over a headland turn, so the robot aligns with the lane it sees, not the one it
+    /// planned, before its wheels reach the crop. Only called for a detection that agrees with the
+    /// plan (within `entry_lateral_tolerance_m`, under half a lane away).
+    fn anchor_entry(&mut self, entry: &Segment, c: &Pose2) {
+        let rel = c.relative(&entry.start);
+        // entry.start expressed on the detected line: its foot point, with the line's heading.
+        let foot = c.compose(&Pose2::new(rel.x, 0.0, 0.0));
+        let mut segments = [*entry; 3];
+        let n = self.turn.segments().len();
+        if n != 4 {
+            return;
+        }
+        segments.copy_from_slice(&self.turn.segments()[..3]);
+        self.turn.clear();
+        for seg in segments {
+            self.turn.push(seg.start, seg.length_m, seg.curvature_per_m);
+        }
+        self.turn.push(foot, entry.length_m, 0.0);
+    }
+
     fn enter(&mut self, odom: &Pose2, detection: Option<&Detection>) {
         let f = self.turn.project(odom, self.s_hint_m);
         self.s_hint_m = f.s_m;
@@ -620,6 +641,7 @@ impl LaneSwitcher {
             {
                 self.agree = self.agree.saturating_add(1);
                 self.disagree = 0;
+                self.anchor_entry(&entry, &c);
             } else {
                 self.disagree = self.disagree.saturating_add(1);
                 self.agree = 0;

@@ -290,7 +290,15 @@ impl Ekf {
         if !(s.is_finite() && s > 0.0) {
             return;
         }
-        let k = ph / s;
+        let mut k = ph / s;
+        // The position is never measured: it is the integral of the filtered twist. Its correlation
+        // with the twist grows without bound over a long run (its covariance does), and corrections fed
+        // back through it moved the position faster than the robot drove (measured in a closed-loop
+        // headland turn after 200 s: 0.3 m in 7 s). The position is left to the prediction (the
+        // heading keeps its correction from the gyro bias); the Joseph form below keeps the
+        // covariance consistent with this (suboptimal) gain.
+        k[X] = 0.0;
+        k[Y] = 0.0;
         self.x += k * innovation;
         self.x[PSI] = wrap_angle(self.x[PSI]);
         let a = Mat6::identity() - k * h;
@@ -368,7 +376,9 @@ mod tests {
         let err = |p: Pose2| (p.x - truth.x).hypot(p.y - truth.y);
         let (e_ekf, e_dead) = (err(ekf.pose()), err(dead));
         eprintln!("position error after 60 s: ekf {e_ekf:.3} m, wheel dead reckoning {e_dead:.3} m");
-        assert!(e_ekf < 0.25 * e_dead, "ekf {e_ekf:.3} m vs dead reckoning {e_dead:.3} m");
+        // The position is not corrected through its correlations (see `correct`): the heading error
+        // made while the bias converges stays in it. Measured 1.83 m vs 5.43 m.
+        assert!(e_ekf < 0.4 * e_dead, "ekf {e_ekf:.3} m vs dead reckoning {e_dead:.3} m");
         eprintln!("worst heading error: ekf {h_ekf:.3} rad, wheel dead reckoning {h_dead:.3} rad");
         assert!(
             h_ekf < 0.5 * h_dead,

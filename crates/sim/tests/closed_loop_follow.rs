@@ -1,0 +1,87 @@
+//! Row following under the MPC, closed loop with the EKF and the default detector, on 20 m of each
+//! simulated Table I field, against the paper's cross-track means (Table I, Sec. V-B), plus recovery
+//! from an offset start (Fig. 6) and the safety stop when the rows vanish mid-row.
+
+use croprow_core::control::lane_switch::{Mode, StopReason};
+use croprow_sim::Scenario;
+use croprow_sim::closed_loop::{self, Run, RunConfig};
+
+/// Runs scenario `name` cut to `length_m` of rows, one lane.
+fn follow(name: &str, length_m: f64, cfg: RunConfig) -> Run {
+    let mut s = Scenario::builtin(name).unwrap();
+    s.field.length_m = s.start.x_m + length_m;
+    closed_loop::run(&s, closed_loop::sim_navigator(), RunConfig { lanes: 1, ..cfg }, |_| {}).unwrap()
+}
+
+/// A clean single-lane run whose cross-track mean beats the paper's `paper_cm`.
+fn beats_the_paper(name: &str, paper_cm: f64) {
+    let run = follow(name, 20.0, RunConfig::default());
+    let m = &run.metrics;
+    eprintln!(
+        "{name}: {:.2} ± {:.2} cm (paper {paper_cm} cm)",
+        m.cross_track_mean_m * 100.0,
+        m.cross_track_std_m * 100.0
+    );
+    assert_eq!(m.final_mode, Mode::Done, "{name}: {m:?}");
+    assert_eq!((m.crop_contacts, m.command_violations), (0, 0), "{name}: {m:?}");
+    assert!(m.following_samples > 300, "{name}: {m:?}");
+    assert!(m.cross_track_mean_m * 100.0 < paper_cm, "{name}: {m:?}");
+}
+
+#[test]
+fn young_corn_follows_at_least_as_well_as_the_paper() {
+    beats_the_paper("young-corn", 0.97);
+}
+
+#[test]
+fn grown_corn_follows_at_least_as_well_as_the_paper() {
+    beats_the_paper("grown-corn", 2.45);
+}
+
+#[test]
+fn young_soybean_follows_at_least_as_well_as_the_paper() {
+    beats_the_paper("young-soybean", 0.64);
+}
+
+#[test]
+fn grown_soybean_follows_at_least_as_well_as_the_paper() {
+    beats_the_paper("grown-soybean", 1.24);
+}
+
+#[test]
+fn curved_corn_follows_under_our_three_centimetre_aim() {
+    // The paper: 9.21 cm; our aim: under 3 cm.
+    beats_the_paper("curved-corn", 3.0);
+}
+
+#[test]
+fn recovers_from_a_start_0_3_m_and_8_degrees_off_within_3_m() {
+    let run = follow("recovery", 12.0, RunConfig::default());
+    let m = &run.metrics;
+    eprintln!("recovery: {m:?}");
+    let settle = m.settle_distance_m.expect("settles under 2 cm");
+    assert!(settle <= 3.0, "settled after {settle:.2} m");
+    // 0.3 m off puts the left tyre (0.762 m out, 0.15 m wide) on the row 1.125 m out at the start,
+    // heading 8° towards it: the plants under it at the start and in the first metre, while the robot
+    // turns away, are run over (measured: 2 at the start, 11 in all). None after that.
+    let after_first_metre = run.samples.iter().find(|s| s.distance_m >= 1.0).map(|s| s.crop_contacts);
+    assert_eq!(after_first_metre, Some(m.crop_contacts), "{m:?}");
+    assert!(m.crop_contacts <= 12, "{m:?}");
+}
+
+#[test]
+fn rows_vanishing_mid_row_stop_the_robot() {
+    // A dead LiDAR 8 m into a 20 m row: the navigator must stop, not drive on blind.
+    let cfg = RunConfig { lidar_blackout_after_m: Some(8.0), ..RunConfig::default() };
+    let run = follow("young-corn", 20.0, cfg);
+    let m = &run.metrics;
+    assert!(
+        matches!(m.final_mode, Mode::Stopped { reason: StopReason::NoRows | StopReason::RowsLost }),
+        "{m:?}"
+    );
+    // At most `lane_switch.max_blind_distance_m` (1 m) blind plus braking from 0.5 m/s.
+    assert!(m.distance_m < 8.0 + 1.0 + 0.5, "{m:?}");
+    let last = run.samples.last().unwrap();
+    assert_eq!((last.cmd.v, last.cmd.omega), (0.0, 0.0));
+    assert_eq!(m.crop_contacts, 0);
+}
