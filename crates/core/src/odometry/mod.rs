@@ -1,2 +1,15 @@
 //! Odometry: an EKF that fuses wheel odometry and an IMU into the planar `odom -> base_link` pose the
-//! detector and the controller use (what robot_localization does on the paper's robot).
+//! detector and the controller use (what robot_localization does on the paper's robot, Sec. III-A).
+//!
+//! ```
+//! use croprow_core::odometry::{Ekf, EkfConfig};
+//! let mut ekf = Ekf::new(EkfConfig::default()).unwrap();
+//! ekf.update_wheel(0.00, 0.5, 0.0).unwrap();
+//! ekf.update_imu(0.01, 0.0).unwrap();
+//! ekf.update_wheel(0.02, 0.5, 0.0).unwrap();
+//! assert!(ekf.pose().x > 0.0);
+//! ```
+
+mod ekf;
+
+pub use ekf::{Ekf, EkfConfig, EkfError};

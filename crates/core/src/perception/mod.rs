@@ -6,6 +6,17 @@
 
 use serde::{Deserialize, Serialize};
 
+mod config;
+mod detector;
+mod lanes;
+mod map;
+mod paper;
+mod preprocess;
+mod rng;
+
+pub use config::{DetectorConfig, DetectorMode};
+pub use detector::RowDetector;
+
 use crate::geometry::Point3;
 
 /// One LiDAR revolution, borrowed: points in the sensor frame (m) and the stamp of the scan (s).

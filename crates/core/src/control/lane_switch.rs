@@ -1,0 +1,678 @@
+//! Lane switching: the mission state machine that follows a lane, clears the row end, turns in the
+//! headland onto the next lane, confirms it with the detector and follows it, until the requested
+//! number of lanes is done.
+//!
+//! Where it sits: between the detector and the MPC. Each control step it takes the `odom` pose and,
+//! when a scan came in, its [`Detection`]; it returns a [`Guidance`] (mode, speed, whether the
+//! detector must be reset) and exposes the [`Path`] the MPC must track.
+//!
+//! ```text
+//! Acquiring ─rows─► Following ─row end reached─► ClearingRowEnd ─wheels clear─► Turning ─turn done─► Entering
+//!                       ▲                               │ last lane                                   │
+//!                       └──────────── new lane confirmed by the detector, robot aligned ──────────────┘
+//!                                                       ▼
+//!                                                      Done
+//! Following: rows Lost, or no row for `max_blind_distance_m` ─► Stopped { RowsLost | NoRows }
+//! Entering:  rows disagree with the planned lane ─► Stopped { WrongLane };
+//!            too deep into the field unconfirmed ─► Stopped { ReentryNotConfirmed }
+//! ```
+//!
+//! # The headland turn and what is bounded
+//! Beyond the paper's open-loop PID turns (Sec. III-B), the turn is a path in `odom` tracked by the
+//! same MPC: from the centre line at the point where every wheel has cleared the row end, a quarter
+//! arc of radius `r`, a straight of `shift − 2r`, a second quarter arc turning the same way, then a
+//! straight back into the field along the next lane, `shift = 2 · row_spacing · lane_step` to the side.
+//! The row end is a line across the rows through the end of the canopy (the field's headland edge is
+//! assumed square, so the next lane ends on the same line).
+//!
+//! Bounded, with `d` the along-row distance of `base_link` past the row-end line:
+//! * the turn starts at `d₀ = wheel_x + clearance_margin` (the rear wheels are past the last plant),
+//! * the planned maximum of `d` is `d₀ + r ≤ max_headland_excursion_m` (checked at construction),
+//! * every wheel stays past the row end during the arcs: `d₀ − √(wheel_x² + (wheel_y − r)²) ≥ 0`
+//!   (checked at construction), so no wheel is swept over a plant while the robot is not aligned
+//!   with the rows.
+
+use std::f64::consts::FRAC_PI_2;
+
+use serde::{Deserialize, Serialize};
+
+use crate::control::path::Path;
+use crate::control::reference::{Reference, ReferenceConfig};
+use crate::error::{ConfigError, check_range};
+use crate::geometry::{Pose2, wrap_angle};
+use crate::perception::{Detection, RowStatus};
+
+/// Which way the robot turns at a row end.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TurnDirection {
+    /// Counter-clockwise, towards +y of `base_link`.
+    Left,
+    /// Clockwise, towards −y of `base_link`.
+    Right,
+}
+
+impl TurnDirection {
+    fn sign(self) -> f64 {
+        match self {
+            TurnDirection::Left => 1.0,
+            TurnDirection::Right => -1.0,
+        }
+    }
+}
+
+/// Settings of the lane-switching state machine and of the headland turn.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct LaneSwitchConfig {
+    /// Lanes to drive, the start lane included; 0 means every lane up to the field edge (needs
+    /// `field_lanes`). Default 8 (the paper's 16-row whole field, Sec. V-C).
+    pub lanes: u32,
+    /// Lanes in the field, counted in the direction of the first turn; 0 when unknown. Default 0.
+    pub field_lanes: u32,
+    /// Index of the start lane (0 = the lane at the edge the first turn moves away from). Default 0.
+    pub start_lane: u32,
+    /// Lanes moved per switch: 1 goes to the adjacent lane (two row spacings over, the paper),
+    /// 2 skips one. Default 1.
+    pub lane_step: u32,
+    /// Direction of the first turn; turns then alternate (Sec. III-B). Default right.
+    pub first_turn: TurnDirection,
+    /// Row spacing used for the turn geometry, m. Default 0.75 (Sec. V).
+    pub row_spacing_m: f64,
+    /// Cruise speed along the rows, m/s. Default 0.5.
+    pub cruise_speed_mps: f64,
+    /// Speed while clearing the row end and turning, m/s. Default 0.3.
+    pub turn_speed_mps: f64,
+    /// Speed while entering a new lane, m/s. Default 0.2.
+    pub entry_speed_mps: f64,
+    /// Radius of the two quarter arcs of the headland turn, m. Default 0.6.
+    pub turn_radius_m: f64,
+    /// Extra distance past the row end, beyond the rear wheels, before turning, m. Default 0.15.
+    pub clearance_margin_m: f64,
+    /// Distance of the wheel contact points ahead of and behind `base_link`, m. Default 0.6095.
+    pub wheel_x_m: f64,
+    /// Distance of the wheel contact points to the side of `base_link`, m. Default 0.762.
+    pub wheel_y_m: f64,
+    /// Largest planned distance of `base_link` past the row end, m. Default 1.5 (Sec. V-C).
+    pub max_headland_excursion_m: f64,
+    /// Distance driven without any row while following before stopping, m. Default 1.0.
+    pub max_blind_distance_m: f64,
+    /// Largest lateral offset between the detected and the planned centre line of a new lane, m.
+    /// Default 0.25 (a third of a row spacing: a neighbouring lane is 0.75 m or more away).
+    pub entry_lateral_tolerance_m: f64,
+    /// Largest heading difference between detected and planned centre line, and largest heading
+    /// error of the robot, to confirm a new lane, rad. Default 0.15.
+    pub entry_heading_tolerance_rad: f64,
+    /// Largest lateral error of the robot from the planned lane to enter it, m. Default 0.1.
+    pub entry_alignment_m: f64,
+    /// Consistent detections needed to confirm a lane (and inconsistent ones to refuse it). Default 3.
+    pub entry_confirmations: u32,
+    /// Deepest `base_link` may go into the field before the new lane is confirmed, m. Default 1.0.
+    pub max_unconfirmed_entry_m: f64,
+    /// Distance to the row end assumed when the detector reports the end without one, m. Default 0.
+    pub default_row_end_ahead_m: f64,
+}
+
+impl Default for LaneSwitchConfig {
+    fn default() -> Self {
+        Self {
+            lanes: 8,
+            field_lanes: 0,
+            start_lane: 0,
+            lane_step: 1,
+            first_turn: TurnDirection::Right,
+            row_spacing_m: 0.75,
+            cruise_speed_mps: 0.5,
+            turn_speed_mps: 0.3,
+            entry_speed_mps: 0.2,
+            turn_radius_m: 0.6,
+            clearance_margin_m: 0.15,
+            wheel_x_m: 0.6095,
+            wheel_y_m: 0.762,
+            max_headland_excursion_m: 1.5,
+            max_blind_distance_m: 1.0,
+            entry_lateral_tolerance_m: 0.25,
+            entry_heading_tolerance_rad: 0.15,
+            entry_alignment_m: 0.1,
+            entry_confirmations: 3,
+            max_unconfirmed_entry_m: 1.0,
+            default_row_end_ahead_m: 0.0,
+        }
+    }
+}
+
+impl LaneSwitchConfig {
+    /// Checks every field and the turn geometry, naming the first bad field (`lane_switch.<field>`).
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        check_range("lane_switch.lanes", self.lanes as f64, 0.0, 10_000.0)?;
+        check_range("lane_switch.lane_step", self.lane_step as f64, 1.0, 100.0)?;
+        check_range("lane_switch.row_spacing_m", self.row_spacing_m, 0.1, 5.0)?;
+        check_range("lane_switch.cruise_speed_mps", self.cruise_speed_mps, 0.01, 5.0)?;
+        check_range("lane_switch.turn_speed_mps", self.turn_speed_mps, 0.01, 5.0)?;
+        check_range("lane_switch.entry_speed_mps", self.entry_speed_mps, 0.01, 5.0)?;
+        check_range("lane_switch.wheel_x_m", self.wheel_x_m, 0.0, 5.0)?;
+        check_range("lane_switch.wheel_y_m", self.wheel_y_m, 0.0, 5.0)?;
+        check_range("lane_switch.clearance_margin_m", self.clearance_margin_m, 0.0, 10.0)?;
+        check_range("lane_switch.max_headland_excursion_m", self.max_headland_excursion_m, 0.1, 50.0)?;
+        check_range("lane_switch.max_blind_distance_m", self.max_blind_distance_m, 0.0, 100.0)?;
+        check_range(
+            "lane_switch.entry_lateral_tolerance_m",
+            self.entry_lateral_tolerance_m,
+            0.01,
+            self.row_spacing_m,
+        )?;
+        check_range("lane_switch.entry_heading_tolerance_rad", self.entry_heading_tolerance_rad, 0.001, 1.0)?;
+        check_range("lane_switch.entry_alignment_m", self.entry_alignment_m, 0.001, self.row_spacing_m)?;
+        check_range("lane_switch.entry_confirmations", self.entry_confirmations as f64, 1.0, 1000.0)?;
+        check_range("lane_switch.max_unconfirmed_entry_m", self.max_unconfirmed_entry_m, 0.0, 100.0)?;
+        check_range("lane_switch.default_row_end_ahead_m", self.default_row_end_ahead_m, -10.0, 10.0)?;
+        let shift = self.shift_m();
+        check_range("lane_switch.turn_radius_m", self.turn_radius_m, 0.05, 0.5 * shift)?;
+        let start = self.turn_start_m();
+        if start + self.turn_radius_m > self.max_headland_excursion_m {
+            return Err(ConfigError::invalid(
+                "lane_switch.turn_radius_m",
+                format!(
+                    "the turn reaches {:.3} m past the row end (wheel_x_m + clearance_margin_m + turn_radius_m), over max_headland_excursion_m {}",
+                    start + self.turn_radius_m,
+                    self.max_headland_excursion_m
+                ),
+            ));
+        }
+        let sweep = self.wheel_x_m.hypot(self.wheel_y_m - self.turn_radius_m);
+        if start < sweep {
+            return Err(ConfigError::invalid(
+                "lane_switch.clearance_margin_m",
+                format!("a wheel would sweep {:.3} m back over the row end during the turn", sweep - start),
+            ));
+        }
+        if self.lanes == 0 && self.field_lanes == 0 {
+            return Err(ConfigError::invalid(
+                "lane_switch.lanes",
+                "0 (all lanes) needs lane_switch.field_lanes",
+            ));
+        }
+        if self.field_lanes > 0 {
+            if self.start_lane >= self.field_lanes {
+                return Err(ConfigError::invalid(
+                    "lane_switch.start_lane",
+                    "must be below lane_switch.field_lanes",
+                ));
+            }
+            let last =
+                u64::from(self.start_lane) + u64::from(self.lanes.max(1) - 1) * u64::from(self.lane_step);
+            if last >= u64::from(self.field_lanes) {
+                return Err(ConfigError::invalid(
+                    "lane_switch.lanes",
+                    format!("lane {last} would be needed but the field has {} lanes", self.field_lanes),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Lateral distance between two consecutive lanes driven, m.
+    pub fn shift_m(&self) -> f64 {
+        2.0 * self.row_spacing_m * f64::from(self.lane_step)
+    }
+
+    /// Distance of `base_link` past the row end where the turn starts, m.
+    pub fn turn_start_m(&self) -> f64 {
+        self.wheel_x_m + self.clearance_margin_m
+    }
+
+    /// Number of lanes this mission drives.
+    pub fn lane_count(&self) -> u32 {
+        if self.lanes > 0 {
+            self.lanes
+        } else {
+            (self.field_lanes.saturating_sub(self.start_lane + 1)) / self.lane_step + 1
+        }
+    }
+}
+
+/// Why the robot stopped. Every stop is latched until [`LaneSwitcher::resume`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StopReason {
+    /// The detector reported the rows lost in the middle of a lane.
+    RowsLost,
+    /// No row was seen for `max_blind_distance_m` while following.
+    NoRows,
+    /// The new lane was not confirmed before `base_link` went `max_unconfirmed_entry_m` into the field.
+    ReentryNotConfirmed,
+    /// The rows seen when entering are not the planned lane: a lane would be skipped or repeated.
+    WrongLane,
+    /// The odometry pose was not finite.
+    InvalidOdometry,
+    /// The MPC failed (non-finite numbers or solver error); set by the caller.
+    SolverFailed,
+}
+
+impl StopReason {
+    /// Stable lower-case name.
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            StopReason::RowsLost => "rows_lost",
+            StopReason::NoRows => "no_rows",
+            StopReason::ReentryNotConfirmed => "reentry_not_confirmed",
+            StopReason::WrongLane => "wrong_lane",
+            StopReason::InvalidOdometry => "invalid_odometry",
+            StopReason::SolverFailed => "solver_failed",
+        }
+    }
+}
+
+/// What the robot is doing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", tag = "mode")]
+pub enum Mode {
+    /// Waiting (stopped) for the detector's first rows.
+    Acquiring,
+    /// Following the centre line of the detected rows.
+    Following,
+    /// The row end is reached: driving straight on until every wheel is past it.
+    ClearingRowEnd,
+    /// Tracking the headland turn towards the next lane.
+    Turning,
+    /// On the straight into the next lane, waiting for the detector to confirm it.
+    Entering,
+    /// Every requested lane is driven: stopped.
+    Done,
+    /// Stopped for safety.
+    Stopped {
+        /// Why.
+        reason: StopReason,
+    },
+}
+
+impl Mode {
+    /// Stable lower-case name.
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            Mode::Acquiring => "acquiring",
+            Mode::Following => "following",
+            Mode::ClearingRowEnd => "clearing_row_end",
+            Mode::Turning => "turning",
+            Mode::Entering => "entering",
+            Mode::Done => "done",
+            Mode::Stopped { .. } => "stopped",
+        }
+    }
+
+    /// True when the robot must not move (zero command).
+    pub fn is_stopped(&self) -> bool {
+        matches!(self, Mode::Acquiring | Mode::Done | Mode::Stopped { .. })
+    }
+}
+
+/// The state machine's answer for one step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Guidance {
+    /// Current mode.
+    pub mode: Mode,
+    /// Cruise speed for the MPC along [`LaneSwitcher::path`], m/s; 0 when stopped.
+    pub speed_mps: f64,
+    /// True on the step the caller must reset the detector (its row memory belongs to the old lane).
+    pub reset_detector: bool,
+    /// Lanes whose row end has been cleared.
+    pub lanes_completed: u32,
+    /// Index of the current lane (see [`LaneSwitchConfig::start_lane`]).
+    pub lane: u32,
+}
+
+/// The lane-switching state machine. Its paths are allocated once, in [`LaneSwitcher::new`].
+#[derive(Debug, Clone)]
+pub struct LaneSwitcher {
+    cfg: LaneSwitchConfig,
+    reference: Reference,
+    turn: Path,
+    mode: Mode,
+    s_hint_m: f64,
+    /// A pose on the centre line at the row end of the current lane, heading along the row (`odom`).
+    row_end: Option<Pose2>,
+    /// The row end being turned at (`odom`), from the start of the turn until the next lane is confirmed.
+    exit_line: Option<Pose2>,
+    last_pose: Option<Pose2>,
+    blind_m: f64,
+    turn_index: u32,
+    lanes_completed: u32,
+    lane: u32,
+    agree: u32,
+    disagree: u32,
+    max_excursion_m: f64,
+}
+
+impl LaneSwitcher {
+    /// Validates both configurations.
+    pub fn new(cfg: LaneSwitchConfig, reference: ReferenceConfig) -> Result<Self, ConfigError> {
+        cfg.validate()?;
+        Ok(Self {
+            reference: Reference::new(reference)?,
+            turn: Path::with_capacity(4),
+            mode: Mode::Acquiring,
+            s_hint_m: 0.0,
+            row_end: None,
+            exit_line: None,
+            last_pose: None,
+            blind_m: 0.0,
+            turn_index: 0,
+            lanes_completed: 0,
+            lane: cfg.start_lane,
+            agree: 0,
+            disagree: 0,
+            max_excursion_m: 0.0,
+            cfg,
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &LaneSwitchConfig {
+        &self.cfg
+    }
+
+    /// Current mode.
+    pub fn mode(&self) -> Mode {
+        self.mode
+    }
+
+    /// The path the MPC must track in the current mode (`odom`), or `None` when stopped.
+    pub fn path(&self) -> Option<&Path> {
+        match self.mode {
+            Mode::Following | Mode::ClearingRowEnd => self.reference.path(),
+            Mode::Turning | Mode::Entering => Some(&self.turn),
+            _ => None,
+        }
+    }
+
+    /// Progress along [`LaneSwitcher::path`] at the last step, m: the projection hint.
+    pub fn progress_m(&self) -> f64 {
+        self.s_hint_m
+    }
+
+    /// Lanes whose row end has been cleared.
+    pub fn lanes_completed(&self) -> u32 {
+        self.lanes_completed
+    }
+
+    /// Index of the current lane (see [`LaneSwitchConfig::start_lane`]).
+    pub fn lane(&self) -> u32 {
+        self.lane
+    }
+
+    /// Largest distance `base_link` went past a row-end line so far, m.
+    pub fn max_excursion_m(&self) -> f64 {
+        self.max_excursion_m
+    }
+
+    /// The row-end pose of the current lane in `odom`, once known; during a turn, the row end
+    /// being turned at.
+    pub fn row_end(&self) -> Option<Pose2> {
+        match self.mode {
+            Mode::Turning | Mode::Entering => self.exit_line,
+            _ => self.row_end,
+        }
+    }
+
+    /// Latches a stop decided by the caller (e.g. the MPC failed).
+    pub fn stop(&mut self, reason: StopReason) {
+        self.mode = Mode::Stopped { reason };
+    }
+
+    /// Leaves a stop: forgets the rows and waits for the detector again (lane count kept).
+    pub fn resume(&mut self) {
+        if matches!(self.mode, Mode::Stopped { .. }) {
+            self.reference.reset();
+            self.blind_m = 0.0;
+            self.mode = Mode::Acquiring;
+        }
+    }
+
+    /// One step: the `odom` pose now and, if a scan arrived, its detection (made at this pose).
+    pub fn update(&mut self, odom: &Pose2, detection: Option<&Detection>) -> Guidance {
+        let mut reset_detector = false;
+        if !odom.is_finite() {
+            self.mode = Mode::Stopped { reason: StopReason::InvalidOdometry };
+            return self.guidance(false);
+        }
+        let travelled = self.last_pose.map_or(0.0, |p| (odom.x - p.x).hypot(odom.y - p.y));
+        self.last_pose = Some(*odom);
+        let line = match self.mode {
+            Mode::Turning | Mode::Entering => self.exit_line,
+            _ => self.row_end,
+        };
+        if let Some(end) = line {
+            self.max_excursion_m = self.max_excursion_m.max(along(&end, odom));
+        }
+        // InvalidInput detections carry nothing; they count as no detection.
+        let detection = detection.filter(|d| d.status != RowStatus::InvalidInput);
+        match self.mode {
+            Mode::Acquiring => {
+                if let Some(d) = detection
+                    && d.status == RowStatus::Tracking
+                    && self.reference.update(d, odom)
+                {
+                    self.enter_following(odom);
+                }
+            }
+            Mode::Following => self.follow(odom, detection, travelled),
+            Mode::ClearingRowEnd => {
+                if let (Some(d), Some(end)) = (detection, self.row_end)
+                    && let Some(ahead) = d.row_end_ahead_m.filter(|a| a.is_finite())
+                {
+                    // A closer look refines the row end; only small corrections are believed.
+                    let refined = self.end_from(odom, ahead);
+                    if along(&end, &refined).abs() < 1.0 {
+                        self.row_end = Some(refined);
+                    }
+                }
+                if let Some(end) = self.row_end
+                    && along(&end, odom) >= self.cfg.turn_start_m()
+                {
+                    self.lanes_completed += 1;
+                    if self.lanes_completed >= self.cfg.lane_count() {
+                        self.mode = Mode::Done;
+                    } else {
+                        self.plan_turn(odom, &end);
+                        self.mode = Mode::Turning;
+                        reset_detector = true;
+                    }
+                }
+            }
+            Mode::Turning => {
+                let arcs_end = self.turn.segments().iter().take(3).map(|s| s.length_m).sum::<f64>();
+                self.s_hint_m = self.turn.project(odom, self.s_hint_m).s_m;
+                if self.s_hint_m >= arcs_end {
+                    self.mode = Mode::Entering;
+                    self.agree = 0;
+                    self.disagree = 0;
+                    reset_detector = true;
+                }
+            }
+            Mode::Entering => self.enter(odom, detection),
+            Mode::Done | Mode::Stopped { .. } => {}
+        }
+        self.guidance(reset_detector)
+    }
+
+    fn guidance(&self, reset_detector: bool) -> Guidance {
+        let speed_mps = match self.mode {
+            Mode::Following => self.cfg.cruise_speed_mps,
+            Mode::ClearingRowEnd | Mode::Turning => self.cfg.turn_speed_mps,
+            Mode::Entering => self.cfg.entry_speed_mps,
+            Mode::Acquiring | Mode::Done | Mode::Stopped { .. } => 0.0,
+        };
+        Guidance {
+            mode: self.mode,
+            speed_mps,
+            reset_detector,
+            lanes_completed: self.lanes_completed,
+            lane: self.lane,
+        }
+    }
+
+    fn enter_following(&mut self, odom: &Pose2) {
+        self.mode = Mode::Following;
+        self.blind_m = 0.0;
+        self.row_end = None;
+        self.exit_line = None;
+        self.s_hint_m = self.reference.path().map_or(0.0, |p| p.project(odom, 0.0).s_m);
+    }
+
+    fn follow(&mut self, odom: &Pose2, detection: Option<&Detection>, travelled: f64) {
+        let mut saw_rows = false;
+        if let Some(d) = detection {
+            if d.status == RowStatus::Lost {
+                self.mode = Mode::Stopped { reason: StopReason::RowsLost };
+                return;
+            }
+            saw_rows = self.reference.update(d, odom);
+            if let Some(ahead) = d.row_end_ahead_m.filter(|a| a.is_finite()) {
+                self.row_end = Some(self.end_from(odom, ahead));
+            } else if d.status == RowStatus::EndOfRow && self.row_end.is_none() {
+                self.row_end = Some(self.end_from(odom, self.cfg.default_row_end_ahead_m));
+            }
+        }
+        if let Some(path) = self.reference.path() {
+            self.s_hint_m = path.project(odom, self.s_hint_m).s_m;
+        }
+        let ended = detection.is_some_and(|d| d.status == RowStatus::EndOfRow);
+        if let Some(end) = self.row_end
+            && (ended || along(&end, odom) >= 0.0)
+        {
+            // Past the canopy the detector's lines mean nothing: hold the last row direction.
+            self.reference.straighten_at(odom);
+            self.mode = Mode::ClearingRowEnd;
+            return;
+        }
+        // Once the detector has seen where the canopy ends, the line is carried to it without rows.
+        self.blind_m = if saw_rows || self.row_end.is_some() { 0.0 } else { self.blind_m + travelled };
+        if self.blind_m > self.cfg.max_blind_distance_m {
+            self.mode = Mode::Stopped { reason: StopReason::NoRows };
+        }
+    }
+
+    /// The row end `ahead` metres along the current centre line from the robot.
+    fn end_from(&self, odom: &Pose2, ahead: f64) -> Pose2 {
+        match self.reference.path() {
+            Some(path) => {
+                let s = path.project(odom, self.s_hint_m).s_m;
+                path.pose_at(s + ahead)
+            }
+            None => odom.compose(&Pose2::new(ahead, 0.0, 0.0)),
+        }
+    }
+
+    fn plan_turn(&mut self, odom: &Pose2, end: &Pose2) {
+        let side = if self.turn_index.is_multiple_of(2) {
+            self.cfg.first_turn.sign()
+        } else {
+            -self.cfg.first_turn.sign()
+        };
+        let r = self.cfg.turn_radius_m;
+        let k = side / r;
+        let shift = self.cfg.shift_m();
+        // Start on the old centre line abreast of the robot, heading along the row.
+        let d = along(end, odom);
+        let start = end.compose(&Pose2::new(d, 0.0, 0.0));
+        let arc = FRAC_PI_2 * r;
+        self.turn.clear();
+        self.turn.extend(start, arc, k);
+        self.turn.extend(start, (shift - 2.0 * r).max(0.0), 0.0);
+        self.turn.extend(start, arc, k);
+        self.turn.extend(start, d + self.cfg.max_unconfirmed_entry_m + 10.0, 0.0);
+        self.s_hint_m = 0.0;
+        self.turn_index += 1;
+        self.exit_line = Some(*end);
+        self.row_end = None;
+    }
+
+    fn enter(&mut self, odom: &Pose2, detection: Option<&Detection>) {
+        let f = self.turn.project(odom, self.s_hint_m);
+        self.s_hint_m = f.s_m;
+        let Some(entry) = self.turn.segments().last().copied() else { return };
+        if let Some(d) = detection
+            && matches!(d.status, RowStatus::Tracking | RowStatus::EndOfRow)
+            && let Some(line) = self.reference.centre_line(d)
+        {
+            let c = odom.compose(&line.pose());
+            let (_, lateral) = {
+                let rel = entry.start.relative(&c);
+                (rel.x, rel.y)
+            };
+            let heading = wrap_angle(c.yaw - entry.start.yaw);
+            if lateral.abs() <= self.cfg.entry_lateral_tolerance_m
+                && heading.abs() <= self.cfg.entry_heading_tolerance_rad
+            {
+                self.agree += 1;
+                self.disagree = 0;
+            } else {
+                self.disagree += 1;
+                self.agree = 0;
+            }
+            let aligned = f.lateral_m.abs() <= self.cfg.entry_alignment_m
+                && f.heading_rad.abs() <= self.cfg.entry_heading_tolerance_rad;
+            if self.agree >= self.cfg.entry_confirmations && aligned && self.reference.update(d, odom) {
+                self.lane += self.cfg.lane_step;
+                self.enter_following(odom);
+                return;
+            }
+            if self.disagree >= self.cfg.entry_confirmations {
+                self.mode = Mode::Stopped { reason: StopReason::WrongLane };
+                return;
+            }
+        }
+        if let Some(end) = self.exit_line
+            && -along(&end, odom) > self.cfg.max_unconfirmed_entry_m
+        {
+            self.mode = Mode::Stopped { reason: StopReason::ReentryNotConfirmed };
+        }
+    }
+}
+
+/// Signed distance of `pose` past the row-end line `end` along the row direction, m.
+fn along(end: &Pose2, pose: &Pose2) -> f64 {
+    end.inverse_transform_point(pose.x, pose.y).0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_turn_fits_the_headland() {
+        let cfg = LaneSwitchConfig::default();
+        cfg.validate().unwrap();
+        // 0.6095 + 0.15 + 0.6 = 1.3595 m past the row end.
+        assert!((cfg.turn_start_m() + cfg.turn_radius_m - 1.3595).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_turn_past_the_headland_is_refused() {
+        let cfg = LaneSwitchConfig { clearance_margin_m: 0.5, ..LaneSwitchConfig::default() };
+        assert!(cfg.validate().unwrap_err().to_string().contains("lane_switch.turn_radius_m"));
+    }
+
+    #[test]
+    fn a_turn_sweeping_a_wheel_over_the_crop_is_refused() {
+        let cfg =
+            LaneSwitchConfig { clearance_margin_m: 0.0, turn_radius_m: 0.2, ..LaneSwitchConfig::default() };
+        assert!(cfg.validate().unwrap_err().to_string().contains("lane_switch.clearance_margin_m"));
+    }
+
+    #[test]
+    fn more_lanes_than_the_field_has_are_refused() {
+        let cfg = LaneSwitchConfig { field_lanes: 8, start_lane: 3, lanes: 6, ..LaneSwitchConfig::default() };
+        assert!(cfg.validate().unwrap_err().to_string().contains("lane_switch.lanes"));
+        let all = LaneSwitchConfig {
+            field_lanes: 8,
+            start_lane: 3,
+            lanes: 0,
+            lane_step: 2,
+            ..LaneSwitchConfig::default()
+        };
+        all.validate().unwrap();
+        // Lanes 3, 5, 7.
+        assert_eq!(all.lane_count(), 3);
+    }
+}

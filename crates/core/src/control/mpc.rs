@@ -1,0 +1,544 @@
+//! Nonlinear model predictive control of a unicycle / skid-steer robot along a [`Path`], solved with
+//! PANOC (optimization_engine).
+//!
+//! Where it sits: the lane switcher hands over a path in `odom` (the row centre line or a headland
+//! turn) and a cruise speed; [`Mpc::solve`] returns the `(v, ω)` command for `base_link`.
+//!
+//! # Model (path / Frenet frame)
+//! With lateral offset `e_y` (m, left positive), heading error `e_ψ` (rad) and path curvature `κ`:
+//!
+//! ```text
+//! ṡ = v cos e_ψ / (1 − κ e_y),   ė_y = v sin e_ψ,   ė_ψ = ω − κ ṡ
+//! ```
+//!
+//! integrated with forward Euler over `N` steps of `step_s`. The curvature of stage `k` is read at the
+//! arc length the previous (shifted) plan predicts, a real-time-iteration choice that keeps the
+//! gradient exact and cheap.
+//!
+//! # Cost
+//! `Σ w_k (q_y e_y² + q_ψ e_ψ²) + r_v (v − v_ref)² + r_ω (ω − κ v_ref)² + s_v v̇² + s_ω ω̇²`, with the
+//! last stage weighted by `terminal_factor`, plus a stiff quadratic penalty on rates beyond their limits.
+//!
+//! # Constraints
+//! Decision variables are the absolute inputs `(v_k, ω_k)`. Their magnitude bounds are hard: a box
+//! (`Rectangle`) whose projection is exact. Rate bounds are enforced inside the horizon by the penalty
+//! (soft, so a sudden reference change never makes the problem infeasible) and exactly on the command
+//! that leaves [`Mpc::solve`], which is clamped to `previous ± limit · step_s`. Both are tested.
+//!
+//! # Real time
+//! One `PANOCCache`, the bounds, the warm start and the curvature profile are allocated in
+//! [`Mpc::new`]; a solve allocates nothing. Every solve is warm-started from the previous solution
+//! shifted by one step. Iterations are capped by `mpc.max_iterations` (deterministic, used in tests);
+//! the caller may also pass a time budget, which OpEn enforces with its own monotonic clock (the only
+//! clock read in the core). Whatever happens, the command is finite: on failure it is zero.
+
+use std::time::Duration;
+
+use optimization_engine::{
+    SolverError,
+    constraints::Rectangle,
+    core::{ExitStatus, Problem, panoc::PANOCCache, panoc::PANOCOptimizer},
+};
+use serde::{Deserialize, Serialize};
+
+use crate::control::path::{Frenet, Path};
+use crate::error::{ConfigError, check_range};
+use crate::geometry::Twist2;
+
+/// Longest horizon the stack-allocated rollout buffers hold.
+pub const MAX_HORIZON: usize = 100;
+
+/// `1 − κ e_y` is floored here: beyond it the robot would be past the centre of curvature.
+const MIN_DENOMINATOR: f64 = 0.2;
+
+/// MPC settings: horizon, weights, bounds and solver budget.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MpcConfig {
+    /// Number of steps N in the horizon. Default 20 (2 s with the default step).
+    pub horizon_steps: usize,
+    /// Step of the prediction model, s. Default 0.1.
+    pub step_s: f64,
+    /// Weight on the lateral error, 1/m². Default 60.
+    pub lateral_weight: f64,
+    /// Weight on the heading error, 1/rad². Default 8.
+    pub heading_weight: f64,
+    /// Weight on the speed error v − v_ref, s²/m². Default 2.
+    pub speed_weight: f64,
+    /// Weight on the yaw rate beyond the path's feed-forward κ·v_ref, s²/rad². Default 0.2.
+    pub yaw_rate_weight: f64,
+    /// Weight on the acceleration v̇, s⁴/m². Default 0.05.
+    pub accel_weight: f64,
+    /// Weight on the yaw acceleration ω̇, s⁴/rad². Default 0.02.
+    pub yaw_accel_weight: f64,
+    /// Multiplier of the state cost of the last stage. Default 5.
+    pub terminal_factor: f64,
+    /// Lowest forward speed, m/s. Default 0 (no reversing in the crop).
+    pub speed_min_mps: f64,
+    /// Highest forward speed, m/s. Default 1.0.
+    pub speed_max_mps: f64,
+    /// Highest yaw rate magnitude, rad/s. Default 1.0.
+    pub yaw_rate_max_radps: f64,
+    /// Highest acceleration magnitude, m/s². Default 0.8.
+    pub accel_max_mps2: f64,
+    /// Highest yaw acceleration magnitude, rad/s². Default 2.0.
+    pub yaw_accel_max_radps2: f64,
+    /// Weight of the quadratic penalty on rates beyond their limits. Default 100.
+    pub rate_penalty_weight: f64,
+    /// PANOC tolerance on the fixed-point residual. Default 1e-4.
+    pub tolerance: f64,
+    /// Iteration cap per solve (deterministic budget). Default 60.
+    pub max_iterations: usize,
+    /// L-BFGS memory of PANOC. Default 8.
+    pub lbfgs_memory: usize,
+}
+
+impl Default for MpcConfig {
+    fn default() -> Self {
+        Self {
+            horizon_steps: 20,
+            step_s: 0.1,
+            lateral_weight: 60.0,
+            heading_weight: 8.0,
+            speed_weight: 2.0,
+            yaw_rate_weight: 0.2,
+            accel_weight: 0.05,
+            yaw_accel_weight: 0.02,
+            terminal_factor: 5.0,
+            speed_min_mps: 0.0,
+            speed_max_mps: 1.0,
+            yaw_rate_max_radps: 1.0,
+            accel_max_mps2: 0.8,
+            yaw_accel_max_radps2: 2.0,
+            rate_penalty_weight: 100.0,
+            tolerance: 1e-4,
+            max_iterations: 60,
+            lbfgs_memory: 8,
+        }
+    }
+}
+
+impl MpcConfig {
+    /// Checks every field, naming the first bad one (`mpc.<field>`).
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        check_range("mpc.horizon_steps", self.horizon_steps as f64, 2.0, MAX_HORIZON as f64)?;
+        check_range("mpc.step_s", self.step_s, 0.005, 1.0)?;
+        for (name, w) in [
+            ("mpc.lateral_weight", self.lateral_weight),
+            ("mpc.heading_weight", self.heading_weight),
+            ("mpc.speed_weight", self.speed_weight),
+            ("mpc.yaw_rate_weight", self.yaw_rate_weight),
+            ("mpc.accel_weight", self.accel_weight),
+            ("mpc.yaw_accel_weight", self.yaw_accel_weight),
+            ("mpc.terminal_factor", self.terminal_factor),
+            ("mpc.rate_penalty_weight", self.rate_penalty_weight),
+        ] {
+            check_range(name, w, 0.0, 1e6)?;
+        }
+        check_range("mpc.speed_min_mps", self.speed_min_mps, -5.0, 5.0)?;
+        check_range("mpc.speed_max_mps", self.speed_max_mps, self.speed_min_mps + 1e-3, 5.0)?;
+        check_range("mpc.yaw_rate_max_radps", self.yaw_rate_max_radps, 1e-3, 10.0)?;
+        check_range("mpc.accel_max_mps2", self.accel_max_mps2, 1e-3, 20.0)?;
+        check_range("mpc.yaw_accel_max_radps2", self.yaw_accel_max_radps2, 1e-3, 50.0)?;
+        check_range("mpc.tolerance", self.tolerance, 1e-12, 1.0)?;
+        check_range("mpc.max_iterations", self.max_iterations as f64, 1.0, 1e6)?;
+        check_range("mpc.lbfgs_memory", self.lbfgs_memory as f64, 1.0, 100.0)?;
+        Ok(())
+    }
+}
+
+/// How a solve ended. Every status but `Failed` comes with a usable (finite, bounded) command.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SolveStatus {
+    /// PANOC met its tolerance.
+    Converged,
+    /// The iteration cap was hit; the best feasible iterate is used.
+    MaxIterations,
+    /// The time budget ran out; the best feasible iterate is used.
+    OutOfTime,
+    /// Non-finite input or a solver error: the command is zero (stop).
+    Failed,
+}
+
+/// The result of one solve.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Solution {
+    /// Command for `base_link`: always finite and inside the speed, yaw-rate and rate bounds.
+    pub cmd: Twist2,
+    /// How the solve ended.
+    pub status: SolveStatus,
+    /// PANOC iterations used.
+    pub iterations: usize,
+    /// Cost of the returned plan (NaN when `Failed`).
+    pub cost: f64,
+}
+
+/// The parameters of one solve: everything the cost depends on besides the inputs.
+#[derive(Debug, Clone)]
+struct Stage {
+    n: usize,
+    dt: f64,
+    q_y: f64,
+    q_psi: f64,
+    r_v: f64,
+    r_w: f64,
+    s_v: f64,
+    s_w: f64,
+    terminal: f64,
+    accel_max: f64,
+    yaw_accel_max: f64,
+    penalty: f64,
+    lateral0: f64,
+    heading0: f64,
+    v_ref: f64,
+    v_prev: f64,
+    w_prev: f64,
+    kappa: Vec<f64>,
+}
+
+impl Stage {
+    fn from_config(cfg: &MpcConfig) -> Self {
+        Self {
+            n: cfg.horizon_steps,
+            dt: cfg.step_s,
+            q_y: cfg.lateral_weight,
+            q_psi: cfg.heading_weight,
+            r_v: cfg.speed_weight,
+            r_w: cfg.yaw_rate_weight,
+            s_v: cfg.accel_weight,
+            s_w: cfg.yaw_accel_weight,
+            terminal: cfg.terminal_factor,
+            accel_max: cfg.accel_max_mps2,
+            yaw_accel_max: cfg.yaw_accel_max_radps2,
+            penalty: cfg.rate_penalty_weight,
+            lateral0: 0.0,
+            heading0: 0.0,
+            v_ref: 0.0,
+            v_prev: 0.0,
+            w_prev: 0.0,
+            kappa: vec![0.0; cfg.horizon_steps],
+        }
+    }
+
+    fn weight(&self, k: usize) -> f64 {
+        if k + 1 == self.n { self.terminal } else { 1.0 }
+    }
+
+    /// One Euler step; returns the next state and the floored denominator with a flag telling
+    /// whether the floor was active (then its derivative is zero).
+    fn step(&self, ey: f64, ep: f64, v: f64, w: f64, kappa: f64) -> (f64, f64, f64, bool) {
+        let raw = 1.0 - kappa * ey;
+        let floored = raw < MIN_DENOMINATOR;
+        let den = if floored { MIN_DENOMINATOR } else { raw };
+        let (sn, cs) = ep.sin_cos();
+        (ey + self.dt * v * sn, ep + self.dt * (w - kappa * v * cs / den), den, floored)
+    }
+
+    /// Soft rate penalty and its derivative with respect to the rate.
+    fn excess(&self, rate: f64, limit: f64) -> (f64, f64) {
+        let over = rate.abs() - limit;
+        if over > 0.0 {
+            (self.penalty * over * over, 2.0 * self.penalty * over * rate.signum())
+        } else {
+            (0.0, 0.0)
+        }
+    }
+
+    fn cost(&self, u: &[f64]) -> f64 {
+        let (mut ey, mut ep) = (self.lateral0, self.heading0);
+        let (mut vp, mut wp) = (self.v_prev, self.w_prev);
+        let mut j = 0.0;
+        for (k, (uk, &kappa)) in u.chunks_exact(2).zip(&self.kappa).enumerate() {
+            let (v, w) = (uk[0], uk[1]);
+            let (ey1, ep1, _, _) = self.step(ey, ep, v, w, kappa);
+            (ey, ep) = (ey1, ep1);
+            j += self.weight(k) * (self.q_y * ey * ey + self.q_psi * ep * ep);
+            let (dv, dw) = (v - self.v_ref, w - kappa * self.v_ref);
+            j += self.r_v * dv * dv + self.r_w * dw * dw;
+            let (av, aw) = ((v - vp) / self.dt, (w - wp) / self.dt);
+            j += self.s_v * av * av + self.s_w * aw * aw;
+            j += self.excess(av, self.accel_max).0 + self.excess(aw, self.yaw_accel_max).0;
+            (vp, wp) = (v, w);
+        }
+        j
+    }
+
+    /// Adjoint (reverse-mode) gradient of [`Stage::cost`].
+    fn gradient(&self, u: &[f64], grad: &mut [f64]) {
+        let mut states = [[0.0f64; 2]; MAX_HORIZON + 1];
+        let n = self.n.min(u.len() / 2).min(grad.len() / 2).min(self.kappa.len());
+        if let Some(first) = states.first_mut() {
+            *first = [self.lateral0, self.heading0];
+        }
+        for k in 0..n {
+            let [ey, ep] = states[k];
+            let (ey1, ep1, _, _) = self.step(ey, ep, u[2 * k], u[2 * k + 1], self.kappa[k]);
+            states[k + 1] = [ey1, ep1];
+        }
+        // Direct input terms first: effort and rates (each rate touches u_k and u_{k-1}).
+        let (mut vp, mut wp) = (self.v_prev, self.w_prev);
+        for k in 0..n {
+            let (v, w, kappa) = (u[2 * k], u[2 * k + 1], self.kappa[k]);
+            grad[2 * k] = 2.0 * self.r_v * (v - self.v_ref);
+            grad[2 * k + 1] = 2.0 * self.r_w * (w - kappa * self.v_ref);
+            let (av, aw) = ((v - vp) / self.dt, (w - wp) / self.dt);
+            let gv = (2.0 * self.s_v * av + self.excess(av, self.accel_max).1) / self.dt;
+            let gw = (2.0 * self.s_w * aw + self.excess(aw, self.yaw_accel_max).1) / self.dt;
+            grad[2 * k] += gv;
+            grad[2 * k + 1] += gw;
+            if k > 0 {
+                grad[2 * k - 2] -= gv;
+                grad[2 * k - 1] -= gw;
+            }
+            (vp, wp) = (v, w);
+        }
+        // Backward pass: lambda is dJ/dz_{k+1}.
+        let (mut ly, mut lp) = (0.0, 0.0);
+        for k in (0..n).rev() {
+            let [ey1, ep1] = states[k + 1];
+            let wk = self.weight(k);
+            ly += 2.0 * wk * self.q_y * ey1;
+            lp += 2.0 * wk * self.q_psi * ep1;
+            let [ey, ep] = states[k];
+            let (v, kappa) = (u[2 * k], self.kappa[k]);
+            let (_, _, den, floored) = self.step(ey, ep, v, u[2 * k + 1], kappa);
+            let (sn, cs) = ep.sin_cos();
+            grad[2 * k] += self.dt * (sn * ly - kappa * cs / den * lp);
+            grad[2 * k + 1] += self.dt * lp;
+            let d_ey = if floored { 0.0 } else { -kappa * kappa * v * cs / (den * den) };
+            let d_ep_y = v * cs;
+            let d_ep_p = kappa * v * sn / den;
+            (ly, lp) = (ly + self.dt * d_ey * lp, lp + self.dt * (d_ep_y * ly + d_ep_p * lp));
+        }
+    }
+}
+
+/// The controller: configuration, solver cache and warm start, reused every cycle.
+pub struct Mpc {
+    cfg: MpcConfig,
+    stage: Stage,
+    cache: PANOCCache,
+    u: Vec<f64>,
+    u_min: Vec<f64>,
+    u_max: Vec<f64>,
+}
+
+impl std::fmt::Debug for Mpc {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Mpc").field("cfg", &self.cfg).field("plan", &self.u).finish_non_exhaustive()
+    }
+}
+
+impl Mpc {
+    /// Validates the configuration and allocates everything a solve needs.
+    pub fn new(cfg: MpcConfig) -> Result<Self, ConfigError> {
+        cfg.validate()?;
+        let n = cfg.horizon_steps;
+        let u_min = (0..2 * n)
+            .map(|i| if i % 2 == 0 { cfg.speed_min_mps } else { -cfg.yaw_rate_max_radps })
+            .collect();
+        let u_max =
+            (0..2 * n).map(|i| if i % 2 == 0 { cfg.speed_max_mps } else { cfg.yaw_rate_max_radps }).collect();
+        Ok(Self {
+            stage: Stage::from_config(&cfg),
+            cache: PANOCCache::new(2 * n, cfg.tolerance, cfg.lbfgs_memory),
+            u: vec![0.0; 2 * n],
+            u_min,
+            u_max,
+            cfg,
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &MpcConfig {
+        &self.cfg
+    }
+
+    /// The current plan `[v_0, ω_0, v_1, ω_1, …]` (m/s, rad/s), the warm start of the next solve.
+    pub fn plan(&self) -> &[f64] {
+        &self.u
+    }
+
+    /// Forgets the warm start (after a stop or a jump of the reference).
+    pub fn reset(&mut self) {
+        self.u.fill(0.0);
+    }
+
+    /// Solves for the command that tracks `path` from the robot's place `state` on it at cruise speed
+    /// `speed_mps`, given the `previous` command (the one applied one step ago) for the rate terms.
+    /// `time_budget` caps the wall time of this solve (OpEn's clock); `None` relies on the iteration cap.
+    pub fn solve(
+        &mut self,
+        state: &Frenet,
+        path: &Path,
+        speed_mps: f64,
+        previous: Twist2,
+        time_budget: Option<Duration>,
+    ) -> Solution {
+        let finite = state.lateral_m.is_finite()
+            && state.heading_rad.is_finite()
+            && state.s_m.is_finite()
+            && speed_mps.is_finite()
+            && previous.is_finite()
+            && path
+                .segments()
+                .iter()
+                .all(|s| s.start.is_finite() && s.length_m.is_finite() && s.curvature_per_m.is_finite());
+        if !finite {
+            return self.fail();
+        }
+        let v_ref = speed_mps.clamp(self.cfg.speed_min_mps, self.cfg.speed_max_mps);
+        let previous = Twist2::new(
+            previous.v.clamp(self.cfg.speed_min_mps, self.cfg.speed_max_mps),
+            previous.omega.clamp(-self.cfg.yaw_rate_max_radps, self.cfg.yaw_rate_max_radps),
+        );
+        self.shift_warm_start(v_ref);
+        self.stage.lateral0 = state.lateral_m;
+        self.stage.heading0 = state.heading_rad;
+        self.stage.v_ref = v_ref;
+        self.stage.v_prev = previous.v;
+        self.stage.w_prev = previous.omega;
+        // Curvature where the warm-start plan expects to be at each stage.
+        let mut s = state.s_m;
+        for (kappa, uk) in self.stage.kappa.iter_mut().zip(self.u.chunks_exact(2)) {
+            *kappa = path.curvature_at(s);
+            s += uk[0].max(0.0) * self.cfg.step_s;
+        }
+
+        let stage = &self.stage;
+        let bounds = Rectangle::new(Some(&self.u_min), Some(&self.u_max));
+        let cost = |u: &[f64], c: &mut f64| -> Result<(), SolverError> {
+            *c = stage.cost(u);
+            Ok(())
+        };
+        let grad = |u: &[f64], g: &mut [f64]| -> Result<(), SolverError> {
+            stage.gradient(u, g);
+            Ok(())
+        };
+        let problem = Problem::new(&bounds, grad, cost);
+        let mut optimizer =
+            PANOCOptimizer::new(problem, &mut self.cache).with_max_iter(self.cfg.max_iterations);
+        if let Some(budget) = time_budget {
+            optimizer = optimizer.with_max_duration(budget);
+        }
+        let result = optimizer.solve(&mut self.u);
+        let Ok(report) = result else { return self.fail() };
+        let status = match report.exit_status() {
+            ExitStatus::Converged => SolveStatus::Converged,
+            ExitStatus::NotConvergedIterations => SolveStatus::MaxIterations,
+            ExitStatus::NotConvergedOutOfTime => SolveStatus::OutOfTime,
+        };
+        let (Some(&v), Some(&w)) = (self.u.first(), self.u.get(1)) else { return self.fail() };
+        let dv = self.cfg.accel_max_mps2 * self.cfg.step_s;
+        let dw = self.cfg.yaw_accel_max_radps2 * self.cfg.step_s;
+        let cmd = Twist2::new(
+            v.clamp(previous.v - dv, previous.v + dv).clamp(self.cfg.speed_min_mps, self.cfg.speed_max_mps),
+            w.clamp(previous.omega - dw, previous.omega + dw)
+                .clamp(-self.cfg.yaw_rate_max_radps, self.cfg.yaw_rate_max_radps),
+        );
+        if !cmd.is_finite() {
+            return self.fail();
+        }
+        Solution { cmd, status, iterations: report.iterations(), cost: report.cost_value() }
+    }
+
+    /// Shifts the previous plan one step earlier; a cold plan starts at the cruise speed.
+    fn shift_warm_start(&mut self, v_ref: f64) {
+        if self.u.iter().all(|&x| x == 0.0) {
+            for uk in self.u.chunks_exact_mut(2) {
+                uk[0] = v_ref;
+            }
+            return;
+        }
+        let len = self.u.len();
+        self.u.copy_within(2..len, 0);
+        if len >= 4 {
+            let (head, tail) = self.u.split_at_mut(len - 2);
+            tail.copy_from_slice(&head[len - 4..]);
+        }
+    }
+
+    fn fail(&mut self) -> Solution {
+        self.reset();
+        Solution { cmd: Twist2::ZERO, status: SolveStatus::Failed, iterations: 0, cost: f64::NAN }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Pose2;
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    fn straight() -> Path {
+        let mut p = Path::with_capacity(1);
+        p.push(Pose2::new(-1.0, 0.0, 0.0), 50.0, 0.0);
+        p
+    }
+
+    #[test]
+    fn adjoint_gradient_matches_finite_differences() {
+        let cfg = MpcConfig::default();
+        let mut stage = Stage::from_config(&cfg);
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        stage.lateral0 = 0.25;
+        stage.heading0 = -0.12;
+        stage.v_ref = 0.6;
+        stage.v_prev = 0.4;
+        stage.w_prev = 0.1;
+        for k in stage.kappa.iter_mut() {
+            *k = rng.random_range(-0.8..0.8);
+        }
+        let u: Vec<f64> = (0..2 * cfg.horizon_steps).map(|_| rng.random_range(-0.9..0.9)).collect();
+        let mut g = vec![0.0; u.len()];
+        stage.gradient(&u, &mut g);
+        let h = 1e-6;
+        for i in 0..u.len() {
+            let (mut up, mut um) = (u.clone(), u.clone());
+            up[i] += h;
+            um[i] -= h;
+            let fd = (stage.cost(&up) - stage.cost(&um)) / (2.0 * h);
+            // Central differences: O(h²) truncation plus round-off ~ 1e-10 / h on costs of order 10.
+            assert!(
+                (fd - g[i]).abs() < 1e-5 * (1.0 + fd.abs()),
+                "component {i}: adjoint {} vs fd {fd}",
+                g[i]
+            );
+        }
+    }
+
+    #[test]
+    fn non_finite_state_stops() {
+        let mut mpc = Mpc::new(MpcConfig::default()).unwrap();
+        let s = Frenet { lateral_m: f64::NAN, ..Frenet::default() };
+        let sol = mpc.solve(&s, &straight(), 0.5, Twist2::new(0.5, 0.0), None);
+        assert_eq!(sol.status, SolveStatus::Failed);
+        assert_eq!(sol.cmd, Twist2::ZERO);
+        let sol = mpc.solve(&Frenet::default(), &straight(), f64::INFINITY, Twist2::ZERO, None);
+        assert_eq!(sol.status, SolveStatus::Failed);
+        assert_eq!(sol.cmd, Twist2::ZERO);
+    }
+
+    #[test]
+    fn on_the_line_it_drives_straight() {
+        let mut mpc = Mpc::new(MpcConfig::default()).unwrap();
+        let mut prev = Twist2::new(0.5, 0.0);
+        for _ in 0..5 {
+            let sol = mpc.solve(&Frenet::default(), &straight(), 0.5, prev, None);
+            assert_ne!(sol.status, SolveStatus::Failed);
+            prev = sol.cmd;
+        }
+        // Tolerance: the converged plan is within PANOC's 1e-4 residual of the exact (0.5, 0).
+        assert!((prev.v - 0.5).abs() < 1e-3 && prev.omega.abs() < 1e-3, "{prev:?}");
+    }
+
+    #[test]
+    fn absurd_config_is_refused() {
+        let cfg = MpcConfig { horizon_steps: 0, ..MpcConfig::default() };
+        assert!(Mpc::new(cfg).unwrap_err().to_string().contains("mpc.horizon_steps"));
+        let cfg = MpcConfig { speed_max_mps: -1.0, ..MpcConfig::default() };
+        assert!(Mpc::new(cfg).unwrap_err().to_string().contains("mpc.speed_max_mps"));
+    }
+}

@@ -1,0 +1,267 @@
+//! The [`Navigator`]: the one facade the simulator, the recording replayer and the ROS node call.
+//!
+//! Each step reads like the paper's system design (Sec. III): the LiDAR scan and the filtered
+//! odometry go to the crop-row detector (rows in `base_link`); the lane switcher turns the rows into
+//! the centre-line path in `odom` (or, at a row end, a headland turn); the nonlinear MPC tracks that
+//! path and returns `(v, ω)`. Scans come at 10 Hz; steps without a scan reuse the last path, carried
+//! by odometry, so the controller may run faster than the LiDAR.
+//!
+//! ```
+//! use croprow_core::navigator::{NavInput, Navigator, NavigatorConfig};
+//! use croprow_core::{Mount, Pose2, Twist2};
+//! let mut nav = Navigator::new(NavigatorConfig::default()).unwrap();
+//! let mount = Mount::default();
+//! let out = nav.step(NavInput { stamp_s: 0.0, odom: Pose2::default(), odom_twist: Twist2::ZERO, scan: None, mount: &mount, mpc_budget: None });
+//! assert_eq!(out.cmd, Twist2::ZERO); // no rows yet: wait
+//! ```
+
+use std::time::Duration;
+
+use serde::{Deserialize, Serialize};
+
+use crate::control::lane_switch::{LaneSwitchConfig, LaneSwitcher, Mode, StopReason};
+use crate::control::mpc::{Mpc, MpcConfig, SolveStatus};
+use crate::control::path::Frenet;
+use crate::control::reference::ReferenceConfig;
+use crate::error::ConfigError;
+use crate::geometry::{Mount, Pose2, Twist2};
+use crate::perception::{Detection, DetectorConfig, RowDetector, Scan};
+
+/// The whole navigation configuration: one section per stage, with the same dotted names in config
+/// files, `--set` overrides and ROS parameters (`detector.fov_deg`, `mpc.horizon_steps`, ...).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct NavigatorConfig {
+    /// Crop-row detector.
+    pub detector: DetectorConfig,
+    /// Centre-line reference.
+    pub reference: ReferenceConfig,
+    /// Nonlinear MPC.
+    pub mpc: MpcConfig,
+    /// Lane switching and headland turns.
+    pub lane_switch: LaneSwitchConfig,
+}
+
+impl NavigatorConfig {
+    /// Validates every section.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        self.detector.validate()?;
+        self.reference.validate()?;
+        self.mpc.validate()?;
+        self.lane_switch.validate()?;
+        Ok(())
+    }
+}
+
+/// One step's input.
+#[derive(Debug, Clone, Copy)]
+pub struct NavInput<'a> {
+    /// Time of this step, s (the odometry's clock). Must not decrease.
+    pub stamp_s: f64,
+    /// Pose of `base_link` in `odom` at `stamp_s` (filtered odometry, e.g. [`crate::odometry::Ekf`]).
+    pub odom: Pose2,
+    /// Body twist at `stamp_s` (logged; the controller uses its own last command for rate limits).
+    pub odom_twist: Twist2,
+    /// The LiDAR scan, when one completed at `stamp_s` (its stamp should equal `stamp_s`, so that
+    /// `odom` is the pose of the scan).
+    pub scan: Option<Scan<'a>>,
+    /// `base_link -> sensor`.
+    pub mount: &'a Mount,
+    /// Wall-time budget of the MPC solve (`None`: iteration cap only, deterministic).
+    pub mpc_budget: Option<Duration>,
+}
+
+/// Why a step's input was refused. The navigator's state is kept and the command is zero.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum InputFault {
+    /// The stamp is not finite or is before the previous step's.
+    BadStamp,
+    /// The odometry pose or twist is not finite.
+    BadOdometry,
+}
+
+/// One step's output.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NavOutput {
+    /// Stamp of the step, s.
+    pub stamp_s: f64,
+    /// Command for `base_link`: always finite; zero whenever the robot must not move.
+    pub cmd: Twist2,
+    /// Mission mode after this step.
+    pub mode: Mode,
+    /// The detector's result, when a scan came with this step.
+    pub detection: Option<Detection>,
+    /// How the MPC solve ended, when one ran.
+    pub solve_status: Option<SolveStatus>,
+    /// PANOC iterations of the solve (0 without one).
+    pub solve_iterations: usize,
+    /// Where the robot is relative to the tracked path (lateral and heading error), when tracking.
+    pub tracking: Option<Frenet>,
+    /// Lanes whose row end has been cleared.
+    pub lanes_completed: u32,
+    /// Current lane index.
+    pub lane: u32,
+    /// Set when the input was refused (zero command, state kept).
+    pub input_fault: Option<InputFault>,
+}
+
+/// Detector -> reference -> lane switching -> MPC, built from one [`NavigatorConfig`].
+#[derive(Debug)]
+pub struct Navigator {
+    cfg: NavigatorConfig,
+    detector: RowDetector,
+    switcher: LaneSwitcher,
+    mpc: Mpc,
+    last_cmd: Twist2,
+    last_stamp_s: Option<f64>,
+}
+
+impl Navigator {
+    /// Validates the configuration and builds every stage (all buffers are allocated here).
+    pub fn new(cfg: NavigatorConfig) -> Result<Self, ConfigError> {
+        cfg.validate()?;
+        Ok(Self {
+            detector: RowDetector::new(cfg.detector.clone())?,
+            switcher: LaneSwitcher::new(cfg.lane_switch.clone(), cfg.reference.clone())?,
+            mpc: Mpc::new(cfg.mpc.clone())?,
+            last_cmd: Twist2::ZERO,
+            last_stamp_s: None,
+            cfg,
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &NavigatorConfig {
+        &self.cfg
+    }
+
+    /// The detector (for its centroids, to draw them).
+    pub fn detector(&self) -> &RowDetector {
+        &self.detector
+    }
+
+    /// The lane switcher (mode, path being tracked, row end, headland excursion).
+    pub fn lane_switcher(&self) -> &LaneSwitcher {
+        &self.switcher
+    }
+
+    /// The MPC (its current plan).
+    pub fn mpc(&self) -> &Mpc {
+        &self.mpc
+    }
+
+    /// Leaves a safety stop: the detector and the controller start over, the lane count is kept.
+    pub fn resume(&mut self) {
+        self.switcher.resume();
+        self.detector.reset();
+        self.mpc.reset();
+        self.last_cmd = Twist2::ZERO;
+    }
+
+    /// One control step: runs the detector on the scan, if any, then lane switching and the MPC.
+    pub fn step(&mut self, input: NavInput<'_>) -> NavOutput {
+        if let Some(fault) = self.check(&input) {
+            return self.refuse(input.stamp_s, fault);
+        }
+        let detection = input.scan.map(|scan| self.detector.detect(scan, input.odom, input.mount));
+        self.advance(input.stamp_s, input.odom, detection, input.mpc_budget)
+    }
+
+    /// One control step with a detection made elsewhere (a recorded one, or a test's): the same as
+    /// [`Navigator::step`] without running the detector. `odom_twist` is only checked.
+    pub fn step_with_detection(
+        &mut self,
+        stamp_s: f64,
+        odom: Pose2,
+        odom_twist: Twist2,
+        detection: Option<Detection>,
+        mpc_budget: Option<Duration>,
+    ) -> NavOutput {
+        let mount = Mount::default();
+        let input = NavInput { stamp_s, odom, odom_twist, scan: None, mount: &mount, mpc_budget };
+        if let Some(fault) = self.check(&input) {
+            return self.refuse(stamp_s, fault);
+        }
+        self.advance(stamp_s, odom, detection, mpc_budget)
+    }
+
+    fn check(&self, input: &NavInput<'_>) -> Option<InputFault> {
+        if !input.stamp_s.is_finite() || self.last_stamp_s.is_some_and(|t| input.stamp_s < t) {
+            return Some(InputFault::BadStamp);
+        }
+        if !input.odom.is_finite() || !input.odom_twist.is_finite() {
+            return Some(InputFault::BadOdometry);
+        }
+        None
+    }
+
+    fn refuse(&mut self, stamp_s: f64, fault: InputFault) -> NavOutput {
+        self.last_cmd = Twist2::ZERO;
+        NavOutput {
+            stamp_s,
+            cmd: Twist2::ZERO,
+            mode: self.switcher.mode(),
+            detection: None,
+            solve_status: None,
+            solve_iterations: 0,
+            tracking: None,
+            lanes_completed: self.switcher.lanes_completed(),
+            lane: self.switcher.lane(),
+            input_fault: Some(fault),
+        }
+    }
+
+    fn advance(
+        &mut self,
+        stamp_s: f64,
+        odom: Pose2,
+        detection: Option<Detection>,
+        budget: Option<Duration>,
+    ) -> NavOutput {
+        // The MPC limits rates per model step; a controller running faster than that must limit them
+        // per elapsed time. Capped at one model step so that a pause does not release a jump.
+        let elapsed_s =
+            self.last_stamp_s.map_or(self.cfg.mpc.step_s, |t| (stamp_s - t).min(self.cfg.mpc.step_s));
+        self.last_stamp_s = Some(stamp_s);
+        let guidance = self.switcher.update(&odom, detection.as_ref());
+        if guidance.reset_detector {
+            self.detector.reset();
+        }
+        let mut out = NavOutput {
+            stamp_s,
+            cmd: Twist2::ZERO,
+            mode: guidance.mode,
+            detection,
+            solve_status: None,
+            solve_iterations: 0,
+            tracking: None,
+            lanes_completed: guidance.lanes_completed,
+            lane: guidance.lane,
+            input_fault: None,
+        };
+        let path = if guidance.mode.is_stopped() { None } else { self.switcher.path() };
+        if let Some(path) = path {
+            let frenet = path.project(&odom, self.switcher.progress_m());
+            let sol = self.mpc.solve(&frenet, path, guidance.speed_mps, self.last_cmd, budget);
+            out.solve_status = Some(sol.status);
+            out.solve_iterations = sol.iterations;
+            out.tracking = Some(frenet);
+            if sol.status == SolveStatus::Failed || !sol.cmd.is_finite() {
+                self.switcher.stop(StopReason::SolverFailed);
+                out.mode = self.switcher.mode();
+            } else {
+                let dv = self.cfg.mpc.accel_max_mps2 * elapsed_s;
+                let dw = self.cfg.mpc.yaw_accel_max_radps2 * elapsed_s;
+                out.cmd = Twist2::new(
+                    sol.cmd.v.clamp(self.last_cmd.v - dv, self.last_cmd.v + dv),
+                    sol.cmd.omega.clamp(self.last_cmd.omega - dw, self.last_cmd.omega + dw),
+                );
+            }
+        } else {
+            self.mpc.reset();
+        }
+        self.last_cmd = out.cmd;
+        out
+    }
+}

@@ -1,0 +1,234 @@
+//! The detector's configuration: one struct, two modes, validated once when the detector is built.
+//!
+//! ```
+//! use croprow_core::{DetectorConfig, DetectorMode};
+//! let paper = DetectorConfig::paper();
+//! assert_eq!(paper.mode, DetectorMode::Paper);
+//! assert!(DetectorConfig::default().validate().is_ok());
+//! ```
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{ConfigError, check_range};
+
+/// Which detection pipeline runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum DetectorMode {
+    /// The paper's method (Sec. III-A): K-means per depth bin, a centroid map carried by odometry, RANSAC on
+    /// the first left and first right row. Kept forever as the yardstick.
+    Paper,
+    /// Croprow's method: all visible rows fitted jointly as parallel (optionally curved) lines with an
+    /// online row spacing, on a short map of per-row centroids carried by odometry.
+    #[default]
+    Default,
+}
+
+impl DetectorMode {
+    /// Stable lower-case name (`"paper"`, `"default"`), as the CLI and config files spell it.
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            DetectorMode::Paper => "paper",
+            DetectorMode::Default => "default",
+        }
+    }
+}
+
+/// Configuration of the [`RowDetector`](super::RowDetector). Distances are metres in `base_link`
+/// unless stated; "depth" is the forward distance from the sensor.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DetectorConfig {
+    /// Pipeline to run. Default `default`; `paper` for the paper's method.
+    pub mode: DetectorMode,
+    /// Horizontal field of view kept in front of the sensor, degrees. Default 120 (paper Sec. III-A-1).
+    pub fov_deg: f64,
+    /// Maximum range from the sensor, m. Default 4 (paper Sec. III-A-1).
+    pub range_m: f64,
+    /// Minimum range from the sensor, m: closer returns are the robot itself. Default 0.3.
+    pub min_range_m: f64,
+    /// Height the virtual ground plane is raised above the centroid of the cropped points, m.
+    /// Default 0 (paper eqs. 1-2); the authors' code uses 0.02.
+    pub plane_raise_m: f64,
+    /// Depth bins for K-means (paper mode): width of one bin, m. Default 1 (paper Sec. III-A-2);
+    /// the authors' code uses a single 2.4 m bin.
+    pub depth_bin_m: f64,
+    /// Depth beyond which canopy points are not clustered (paper mode), m. Default 4 (the range crop);
+    /// the authors' code uses 2.4.
+    pub max_depth_m: f64,
+    /// K-means clusters per depth bin before merging (paper mode). Default 10 (the paper's "large n";
+    /// the value of the authors' code).
+    pub kmeans_k: usize,
+    /// K-means (Lloyd) iterations per bin (paper mode). Default 10.
+    pub kmeans_iterations: usize,
+    /// Centroids closer than this laterally are merged into one row centroid, m. Default 0.3 (paper
+    /// Sec. III-A-2).
+    pub merge_distance_m: f64,
+    /// RANSAC iterations per row (paper mode). Default 1000 (paper Sec. III-A-3).
+    pub ransac_iterations: usize,
+    /// RANSAC inlier distance, m (paper mode; not given in the paper). Default 0.05.
+    pub ransac_inlier_m: f64,
+    /// A row is fitted once its centroids span this length along x, m. Default 2 (paper Sec. III-A-3).
+    pub min_span_m: f64,
+    /// Centroids further behind `base_link` than this are dropped from the fit, m. Default 0.5 (paper
+    /// Sec. III-A-3).
+    pub behind_m: f64,
+    /// Paper mode end of row: fewer canopy points than this ... Default 200 (authors' code).
+    pub end_min_points: usize,
+    /// ... for this many consecutive scans raises `EndOfRow`. Default 20 (authors' code).
+    pub end_scans: usize,
+    /// Rows tracked but not updated for this long are reported `Lost`, s. Default 1.
+    pub lost_after_s: f64,
+    /// Fastest plausible robot motion between two scans, m/s; a faster jump of the odometry is a
+    /// teleport and the scan is refused. Default 5.
+    pub max_speed_mps: f64,
+    /// Largest plausible gap between two scans, s; a longer gap resets the map. Default 2.
+    pub max_gap_s: f64,
+    /// Default mode: the canopy plane is never lower than this above the ground level (5th height
+    /// percentile), m, so that weeds (1-8 cm) and ground noise stay out. Default 0.12.
+    pub min_plant_height_m: f64,
+    /// Default mode: smallest row spacing searched, m. Default 0.3.
+    pub spacing_min_m: f64,
+    /// Default mode: largest row spacing searched, m. Default 1.5.
+    pub spacing_max_m: f64,
+    /// Default mode: largest row heading searched at start-up, degrees. Default 20.
+    pub heading_search_deg: f64,
+    /// Default mode: a canopy point belongs to a row when it lies within this fraction of the row spacing
+    /// from the predicted row centre. Default 0.3.
+    pub gate_fraction: f64,
+    /// Default mode: length of the along-row bins whose centroids enter the map, m. Default 0.25.
+    pub map_bin_m: f64,
+    /// Default mode: fewest canopy points for a bin centroid to enter the map. Default 4.
+    pub map_min_points: usize,
+    /// Default mode: capacity of the centroid map (ring buffer, allocated once). Default 4096.
+    pub map_capacity: usize,
+    /// Default mode: fit a curvature term (curved rows). Default true.
+    pub fit_curvature: bool,
+    /// Default mode: the canopy is declared ended when at least this much visible ground follows the
+    /// last canopy in the lane, m. Default 1.
+    pub end_empty_m: f64,
+    /// Default mode: `EndOfRow` is raised once the row end is this close ahead of `base_link`, m.
+    /// Default 0.5.
+    pub end_trigger_m: f64,
+}
+
+impl Default for DetectorConfig {
+    fn default() -> Self {
+        Self {
+            mode: DetectorMode::Default,
+            fov_deg: 120.0,
+            range_m: 4.0,
+            min_range_m: 0.3,
+            plane_raise_m: 0.0,
+            depth_bin_m: 1.0,
+            max_depth_m: 4.0,
+            kmeans_k: 10,
+            kmeans_iterations: 10,
+            merge_distance_m: 0.3,
+            ransac_iterations: 1000,
+            ransac_inlier_m: 0.05,
+            min_span_m: 2.0,
+            behind_m: 0.5,
+            end_min_points: 200,
+            end_scans: 20,
+            lost_after_s: 1.0,
+            max_speed_mps: 5.0,
+            max_gap_s: 2.0,
+            min_plant_height_m: 0.12,
+            spacing_min_m: 0.3,
+            spacing_max_m: 1.5,
+            heading_search_deg: 20.0,
+            gate_fraction: 0.3,
+            map_bin_m: 0.25,
+            map_min_points: 4,
+            map_capacity: 4096,
+            fit_curvature: true,
+            end_empty_m: 1.0,
+            end_trigger_m: 0.5,
+        }
+    }
+}
+
+impl DetectorConfig {
+    /// The paper's method with the values of its text (Sec. III-A).
+    pub fn paper() -> Self {
+        Self { mode: DetectorMode::Paper, ..Self::default() }
+    }
+
+    /// The paper's method with the values of the authors' published code: one 0-2.4 m depth bin,
+    /// k = 10, the plane raised 2 cm.
+    pub fn paper_code() -> Self {
+        Self { depth_bin_m: 2.4, max_depth_m: 2.4, kmeans_k: 10, plane_raise_m: 0.02, ..Self::paper() }
+    }
+
+    /// Checks every field, naming the first bad one as `detector.<field>`.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        check_range("detector.fov_deg", self.fov_deg, 10.0, 179.0)?;
+        check_range("detector.range_m", self.range_m, 1.0, 100.0)?;
+        check_range("detector.min_range_m", self.min_range_m, 0.0, self.range_m - 0.5)?;
+        check_range("detector.plane_raise_m", self.plane_raise_m, -1.0, 1.0)?;
+        check_range("detector.depth_bin_m", self.depth_bin_m, 0.1, 100.0)?;
+        check_range("detector.max_depth_m", self.max_depth_m, self.depth_bin_m.min(1.0), 100.0)?;
+        check_count("detector.kmeans_k", self.kmeans_k, 1, 64)?;
+        check_count("detector.kmeans_iterations", self.kmeans_iterations, 1, 1000)?;
+        check_range("detector.merge_distance_m", self.merge_distance_m, 0.01, 5.0)?;
+        check_count("detector.ransac_iterations", self.ransac_iterations, 1, 1_000_000)?;
+        check_range("detector.ransac_inlier_m", self.ransac_inlier_m, 0.001, 1.0)?;
+        check_range("detector.min_span_m", self.min_span_m, 0.0, 50.0)?;
+        check_range("detector.behind_m", self.behind_m, 0.0, 10.0)?;
+        check_count("detector.end_min_points", self.end_min_points, 0, 10_000_000)?;
+        check_count("detector.end_scans", self.end_scans, 1, 100_000)?;
+        check_range("detector.lost_after_s", self.lost_after_s, 0.01, 3600.0)?;
+        check_range("detector.max_speed_mps", self.max_speed_mps, 0.1, 100.0)?;
+        check_range("detector.max_gap_s", self.max_gap_s, 0.01, 3600.0)?;
+        check_range("detector.min_plant_height_m", self.min_plant_height_m, 0.0, 2.0)?;
+        check_range("detector.spacing_min_m", self.spacing_min_m, 0.1, 5.0)?;
+        check_range("detector.spacing_max_m", self.spacing_max_m, self.spacing_min_m + 0.05, 5.0)?;
+        check_range("detector.heading_search_deg", self.heading_search_deg, 0.0, 45.0)?;
+        check_range("detector.gate_fraction", self.gate_fraction, 0.05, 0.5)?;
+        check_range("detector.map_bin_m", self.map_bin_m, 0.05, 5.0)?;
+        check_count("detector.map_min_points", self.map_min_points, 1, 100_000)?;
+        check_count("detector.map_capacity", self.map_capacity, 16, 1_000_000)?;
+        check_range("detector.end_empty_m", self.end_empty_m, 0.1, 50.0)?;
+        check_range("detector.end_trigger_m", self.end_trigger_m, -10.0, 10.0)?;
+        Ok(())
+    }
+}
+
+fn check_count(field: &str, value: usize, min: usize, max: usize) -> Result<(), ConfigError> {
+    if value < min || value > max {
+        return Err(ConfigError::invalid(field, format!("{value} is not in [{min}, {max}]")));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn presets_are_valid() {
+        for c in [DetectorConfig::default(), DetectorConfig::paper(), DetectorConfig::paper_code()] {
+            assert!(c.validate().is_ok(), "{c:?}");
+        }
+    }
+
+    #[test]
+    fn absurd_values_name_the_field() {
+        let c = DetectorConfig { range_m: -1.0, ..DetectorConfig::default() };
+        let e = c.validate().unwrap_err().to_string();
+        assert!(e.contains("detector.range_m"), "{e}");
+        let c = DetectorConfig { kmeans_k: 0, ..DetectorConfig::paper() };
+        assert!(c.validate().unwrap_err().to_string().contains("detector.kmeans_k"));
+        let c = DetectorConfig { spacing_max_m: 0.2, ..DetectorConfig::default() };
+        assert!(c.validate().unwrap_err().to_string().contains("detector.spacing_max_m"));
+    }
+
+    #[test]
+    fn toml_names_only_overrides() {
+        let c: DetectorConfig = toml::from_str("mode = \"paper\"\nrange_m = 5.0").unwrap();
+        assert_eq!(c.mode, DetectorMode::Paper);
+        assert_eq!(c.range_m, 5.0);
+        assert!(toml::from_str::<DetectorConfig>("nonsense = 1").is_err());
+    }
+}

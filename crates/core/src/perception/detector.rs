@@ -1,0 +1,235 @@
+//! The [`RowDetector`]: checks each step's input, runs the preprocessing and the pipeline of the
+//! configured mode, and turns the result into a [`Detection`] with a status.
+//!
+//! ```
+//! use croprow_core::{DetectorConfig, Mount, Pose2, RowDetector, RowStatus, Scan};
+//! let mut detector = RowDetector::new(DetectorConfig::default()).unwrap();
+//! let d = detector.detect(Scan { stamp_s: 0.0, points: &[] }, Pose2::default(), &Mount::default());
+//! assert_eq!(d.status, RowStatus::InvalidInput); // an empty scan
+//! ```
+
+use crate::error::ConfigError;
+use crate::geometry::{Mount, Pose2, wrap_angle};
+
+use super::config::{DetectorConfig, DetectorMode};
+use super::lanes::Lanes;
+use super::map::CentroidMap;
+use super::paper::Paper;
+use super::preprocess::{PlaneRule, Preprocessor};
+use super::{Detection, RowEstimate, RowStatus, Scan};
+
+/// Points of a full VLP-16 revolution (16 rings × 1800 azimuths): the preprocessing buffers start at
+/// this size so that a live sensor never makes them grow.
+const VLP16_POINTS: usize = 28_800;
+/// Position and heading slack added to the teleport test (odometry noise between two scans), m / rad.
+const JUMP_SLACK_M: f64 = 0.1;
+const JUMP_SLACK_RAD: f64 = 0.1;
+/// Fastest plausible yaw rate of a field robot, rad/s.
+const MAX_YAW_RATE_RPS: f64 = 3.0;
+/// Support (full-weight centroids) at which a default-mode row reaches confidence 1.
+const FULL_SUPPORT: f64 = 10.0;
+/// Confidence of a row that has no support of its own and is placed by its neighbours and the spacing.
+const INFERRED_CONFIDENCE: f64 = 0.25;
+
+/// The crop-row detector. Built once from a validated [`DetectorConfig`]; every buffer is allocated in
+/// [`RowDetector::new`] (the point buffers for a full VLP-16 scan, the centroid map for
+/// `map_capacity` centroids), so [`RowDetector::detect`] does not allocate for scans up to that size.
+#[derive(Debug, Clone)]
+pub struct RowDetector {
+    config: DetectorConfig,
+    pre: Preprocessor,
+    map: CentroidMap,
+    paper: Paper,
+    lanes: Lanes,
+    centroids: Vec<[f64; 2]>,
+    last: Option<(f64, Pose2)>,
+    /// A pose that jumped away from `last`: accepted as the new odometry origin if the next scan agrees.
+    pending_jump: Option<(f64, Pose2)>,
+    /// When rows were last reported, s (for `Lost`).
+    last_rows_s: Option<f64>,
+    /// Consecutive scans with too few canopy points (paper end-of-row rule).
+    sparse_scans: usize,
+}
+
+impl RowDetector {
+    /// A detector for `config`, refused when the config is invalid.
+    pub fn new(config: DetectorConfig) -> Result<Self, ConfigError> {
+        config.validate()?;
+        Ok(Self {
+            pre: Preprocessor::new(VLP16_POINTS),
+            map: CentroidMap::new(config.map_capacity),
+            paper: Paper::new(&config),
+            lanes: Lanes::new(&config),
+            centroids: Vec::with_capacity(config.map_capacity),
+            last: None,
+            pending_jump: None,
+            last_rows_s: None,
+            sparse_scans: 0,
+            config,
+        })
+    }
+
+    /// One step: `scan` points in the sensor frame, `odom` = pose of `base_link` in `odom` at
+    /// `scan.stamp_s`, `mount` = `base_link -> sensor`. Never panics.
+    ///
+    /// Returns [`RowStatus::InvalidInput`] with the state untouched for: a non-finite stamp or pose, a
+    /// stamp not after the previous one, an implausible mount, a scan without a finite point, or an
+    /// odometry jump faster than `max_speed_mps` (if the next scan confirms the jumped pose, the map is
+    /// dropped and detection restarts from it). A gap longer than `max_gap_s` drops the map.
+    pub fn detect(&mut self, scan: Scan<'_>, odom: Pose2, mount: &Mount) -> Detection {
+        let t = scan.stamp_s;
+        let invalid = Detection::empty(t, RowStatus::InvalidInput);
+        if !t.is_finite() || !odom.is_finite() || mount.validate().is_err() {
+            return invalid;
+        }
+        if let Some((last_t, last_pose)) = self.last {
+            if t <= last_t {
+                return invalid;
+            }
+            let dt = t - last_t;
+            if dt > self.config.max_gap_s {
+                self.forget_rows();
+            } else if self.jumped(&last_pose, &odom, dt) {
+                let confirmed =
+                    self.pending_jump.is_some_and(|(pt, pp)| t > pt && !self.jumped(&pp, &odom, t - pt));
+                if !confirmed {
+                    self.pending_jump = Some((t, odom));
+                    return invalid;
+                }
+                self.forget_rows();
+            }
+        }
+        if self.pre.run(scan.points, mount, &self.config, self.plane_rule()) == 0 {
+            return invalid;
+        }
+        self.last = Some((t, odom));
+        self.pending_jump = None;
+        let d = match self.config.mode {
+            DetectorMode::Paper => self.detect_paper(t, &odom, mount),
+            DetectorMode::Default => self.detect_default(t, &odom),
+        };
+        if d.left.is_some() || d.right.is_some() {
+            self.last_rows_s = Some(t);
+        }
+        d
+    }
+
+    fn plane_rule(&self) -> PlaneRule {
+        match self.config.mode {
+            DetectorMode::Paper => PlaneRule::Centroid,
+            DetectorMode::Default => PlaneRule::Percentile,
+        }
+    }
+
+    fn jumped(&self, from: &Pose2, to: &Pose2, dt: f64) -> bool {
+        let dist = (to.x - from.x).hypot(to.y - from.y);
+        let turn = wrap_angle(to.yaw - from.yaw).abs();
+        dist > self.config.max_speed_mps * dt + JUMP_SLACK_M || turn > MAX_YAW_RATE_RPS * dt + JUMP_SLACK_RAD
+    }
+
+    /// The status when no end of row applies: tracking with rows, otherwise searching until rows that
+    /// were tracked have been missing for `lost_after_s`.
+    fn status_without_end(&self, t: f64, has_rows: bool) -> RowStatus {
+        match self.last_rows_s {
+            _ if has_rows => RowStatus::Tracking,
+            Some(last) if t - last > self.config.lost_after_s => RowStatus::Lost,
+            _ => RowStatus::Searching,
+        }
+    }
+
+    fn detect_paper(&mut self, t: f64, odom: &Pose2, mount: &Mount) -> Detection {
+        let rows = self.paper.step(
+            &self.pre.canopy,
+            mount.x_m,
+            odom,
+            &self.config,
+            &mut self.map,
+            &mut self.centroids,
+        );
+        if self.pre.canopy.len() < self.config.end_min_points {
+            self.sparse_scans = self.sparse_scans.saturating_add(1);
+        } else {
+            self.sparse_scans = 0;
+        }
+        let has_rows = rows.left.is_some() || rows.right.is_some();
+        let status = if self.sparse_scans >= self.config.end_scans {
+            RowStatus::EndOfRow
+        } else {
+            self.status_without_end(t, has_rows)
+        };
+        let spacing = match (rows.left, rows.right) {
+            (Some(l), Some(r)) => {
+                Some((l.offset_m - r.offset_m) * ((l.heading_rad + r.heading_rad) * 0.5).cos())
+            }
+            _ => None,
+        };
+        Detection {
+            left: rows.left,
+            right: rows.right,
+            row_spacing_m: spacing,
+            ..Detection::empty(t, status)
+        }
+    }
+
+    fn detect_default(&mut self, t: f64, odom: &Pose2) -> Detection {
+        let out = self.lanes.step(
+            &self.pre.canopy,
+            &self.pre.cropped,
+            odom,
+            t,
+            &self.config,
+            &mut self.map,
+            &mut self.centroids,
+        );
+        let at_end = out.row_end_ahead_m.is_some_and(|d| d <= self.config.end_trigger_m);
+        let Some(lane) = out.lane else {
+            let status = if at_end { RowStatus::EndOfRow } else { self.status_without_end(t, false) };
+            return Detection { row_end_ahead_m: out.row_end_ahead_m, ..Detection::empty(t, status) };
+        };
+        let row = |k: usize, j: i32| -> RowEstimate {
+            let support = out.support.get(k).copied().unwrap_or(0.0);
+            let confidence = if support >= 1.0 { support / FULL_SUPPORT } else { INFERRED_CONFIDENCE };
+            let far = out.far_x_m.get(k).copied().unwrap_or(0.0);
+            lane.row(j, far, if out.updated { confidence } else { INFERRED_CONFIDENCE })
+        };
+        let (left, right) = (row(0, 0), row(1, -1));
+        let status = if at_end { RowStatus::EndOfRow } else { self.status_without_end(t, true) };
+        let all_finite = left.line.iter().chain(&right.line).all(|v| v.is_finite());
+        if !all_finite {
+            return Detection::empty(t, self.status_without_end(t, false));
+        }
+        Detection {
+            left: Some(left),
+            right: Some(right),
+            row_spacing_m: Some(lane.s),
+            row_end_ahead_m: out.row_end_ahead_m,
+            ..Detection::empty(t, status)
+        }
+    }
+
+    fn forget_rows(&mut self) {
+        self.map.clear();
+        self.lanes.reset();
+        self.centroids.clear();
+        self.sparse_scans = 0;
+    }
+
+    /// Forgets all rows (e.g. when entering a new lane) and the odometry history; the configuration and
+    /// the buffers are kept.
+    pub fn reset(&mut self) {
+        self.forget_rows();
+        self.last = None;
+        self.pending_jump = None;
+        self.last_rows_s = None;
+    }
+
+    /// The configuration this detector runs with.
+    pub fn config(&self) -> &DetectorConfig {
+        &self.config
+    }
+
+    /// Row centroids of the map in `base_link` at the last scan, m (for markers and plots).
+    pub fn centroids(&self) -> &[[f64; 2]] {
+        &self.centroids
+    }
+}

@@ -1,0 +1,535 @@
+//! Croprow's default pipeline after preprocessing: every visible row is one member of a family of
+//! parallel, optionally curved lines
+//!
+//! ```text
+//! y_j(x) = o + (j + ½)·s + a·x + b·x²        (base_link, j = 0 first row left, j = -1 first row right)
+//! ```
+//!
+//! with the lane-centre offset `o`, the heading slope `a`, the curvature term `b` and the row spacing `s`
+//! all estimated together, so a missing or gappy row borrows from its neighbours and the spacing is
+//! learned online (crop-agnostic). Each scan:
+//!
+//! 1. **predict**: the previous lane, carried into the new `base_link` by the odometry (or, at start-up, a
+//!    search: the heading that makes the lateral histogram of canopy points sharpest, the spacing from its
+//!    autocorrelation, the phase from its circular mean);
+//! 2. **measure**: canopy points gated to the predicted rows are binned per row and per `map_bin_m` along
+//!    x; each bin centroid enters the [`CentroidMap`] in `odom` (like the paper's centroids, without
+//!    K-means);
+//! 3. **correct**: a weighted least-squares fit of `(o, s, a, b)` to the map centroids from `behind_m` behind
+//!    the robot onwards, regularised towards the prediction (a filter in information form), re-gated once
+//!    with Cauchy weights so weeds and stray plants do not pull it;
+//! 4. **row end**: the canopy of the lane is declared ended where at least `end_empty_m` of visible ground
+//!    follows the last canopy bin; the end is kept in `odom` and cleared if canopy reappears (a gap).
+
+use nalgebra::{Matrix3, Matrix4, Vector3, Vector4};
+
+use crate::geometry::Pose2;
+
+use super::RowEstimate;
+use super::config::DetectorConfig;
+use super::map::CentroidMap;
+
+/// Rows tracked: j in `J_MIN..J_MIN + ROWS` (four each side).
+const J_MIN: i32 = -4;
+const ROWS: usize = 8;
+/// The rows whose canopy decides the row end: the lane's two rows and their outer neighbours.
+const NEAR_ROWS: [i32; 4] = [-2, -1, 0, 1];
+/// Lateral histogram of the start-up search: bin (m) and half-width (m).
+const HIST_BIN_M: f64 = 0.02;
+const HIST_BINS: usize = 500;
+const HIST_HALF_M: f64 = HIST_BIN_M * HIST_BINS as f64 * 0.5;
+/// Along-x bins start this far behind `base_link`, m.
+const X_LO_M: f64 = -1.0;
+/// Bin centroids count fully from this many points on (weight min(n, W)/W).
+const FULL_WEIGHT_POINTS: f64 = 20.0;
+/// Keeps the height weight of a point right at the plane above zero, m².
+const HEIGHT_WEIGHT_FLOOR_M2: f64 = 1e-4;
+/// Scale of the Cauchy weight on the lateral residual in the second fit pass, m.
+const CAUCHY_M: f64 = 0.05;
+/// Prior weights of the correction, in units of one full-weight centroid: the spacing changes slowly;
+/// the curvature term is anchored as if by two centroids 4 m ahead; offset and heading are left free.
+const PRIOR_SPACING: f64 = 5.0;
+const PRIOR_CURVATURE: f64 = 2.0 * 256.0;
+const PRIOR_FREE: f64 = 1e-3;
+/// Fewest canopy points for the start-up search, and the weakest normalised autocorrelation peak
+/// accepted as a row pattern.
+const MIN_SEARCH_POINTS: usize = 30;
+const MIN_PERIODICITY: f64 = 0.15;
+/// Least total centroid weight (full-weight centroids) for a correction to be accepted.
+const MIN_FIT_WEIGHT: f64 = 3.0;
+
+/// The row family in `base_link`: centre line `o + a·x + b·x²` and spacing `s`, m.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Lane {
+    pub(crate) o: f64,
+    pub(crate) a: f64,
+    pub(crate) b: f64,
+    pub(crate) s: f64,
+}
+
+impl Lane {
+    fn centre(&self, x: f64) -> f64 {
+        self.o + self.a * x + self.b * x * x
+    }
+
+    fn row_y(&self, j: i32, x: f64) -> f64 {
+        self.centre(x) + (j as f64 + 0.5) * self.s
+    }
+
+    /// Row index and signed lateral residual of a point, m.
+    fn assign(&self, x: f64, y: f64) -> (i32, f64) {
+        let r = (y - self.centre(x)) / self.s - 0.5;
+        let j = r.round();
+        (j as i32, (r - j) * self.s)
+    }
+
+    /// The same lane with its centre moved by whole spacings to the one nearest the robot, so that
+    /// j = 0 / -1 stay the first rows left / right after the robot crosses a row.
+    fn normalised(self) -> Self {
+        Self { o: self.o - self.s * (self.o / self.s).round(), ..self }
+    }
+
+    fn is_sane(&self, config: &DetectorConfig) -> bool {
+        [self.o, self.a, self.b, self.s].iter().all(|v| v.is_finite())
+            && self.a.abs() < 1.0
+            && self.b.abs() < 0.5
+            && self.s >= config.spacing_min_m
+            && self.s <= config.spacing_max_m
+    }
+
+    /// The lane seen from `to`, given in the `base_link` of `from` (both poses in `odom`): three points of
+    /// the centre line are moved and the quadratic through them is solved exactly.
+    fn transport(&self, from: &Pose2, to: &Pose2) -> Option<Self> {
+        let mut m = Matrix3::zeros();
+        let mut v = Vector3::zeros();
+        for (i, x) in [0.0, 2.0, 4.0].into_iter().enumerate() {
+            let (ox, oy) = from.transform_point(x, self.centre(x));
+            let (bx, by) = to.inverse_transform_point(ox, oy);
+            m[(i, 0)] = 1.0;
+            m[(i, 1)] = bx;
+            m[(i, 2)] = bx * bx;
+            v[i] = by;
+        }
+        let p = m.lu().solve(&v)?;
+        Some(Self { o: p[0], a: p[1], b: p[2], s: self.s }.normalised())
+    }
+
+    /// Row `j` as the detector reports it, from the robot to `x_far_m`.
+    pub(crate) fn row(&self, j: i32, x_far_m: f64, confidence: f64) -> RowEstimate {
+        let x2 = x_far_m.max(1.0);
+        RowEstimate {
+            line: [0.0, self.row_y(j, 0.0), x2, self.row_y(j, x2)],
+            offset_m: self.row_y(j, 0.0),
+            heading_rad: self.a.atan(),
+            curvature_per_m: 2.0 * self.b / (1.0 + self.a * self.a).powf(1.5),
+            confidence: confidence.clamp(0.0, 1.0),
+        }
+    }
+}
+
+/// One per-row, per-x bin of canopy points: count and sums, `base_link`.
+#[derive(Debug, Clone, Copy, Default)]
+struct Bin {
+    n: u32,
+    w: f64,
+    sx: f64,
+    sy: f64,
+}
+
+/// What the default pipeline knows after a scan.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct LaneOutput {
+    /// The row family in `base_link`, when one is tracked.
+    pub(crate) lane: Option<Lane>,
+    /// True when this scan's evidence corrected the lane.
+    pub(crate) updated: bool,
+    /// Centroid weight supporting the first row left and right (full-weight centroids).
+    pub(crate) support: [f64; 2],
+    /// Farthest supporting centroid of the first row left and right, m along x.
+    pub(crate) far_x_m: [f64; 2],
+    /// Distance from `base_link` along the rows to the canopy end, m, once seen.
+    pub(crate) row_end_ahead_m: Option<f64>,
+}
+
+/// State and buffers of the default pipeline, allocated once.
+#[derive(Debug, Clone)]
+pub(crate) struct Lanes {
+    model: Option<(Lane, Pose2)>,
+    last_update_s: f64,
+    bins: Vec<Bin>,
+    visible: Vec<u32>,
+    x_bins: usize,
+    hist: Vec<f64>,
+    /// Row end in `odom`: point on the lane centre and the row direction, rad.
+    end: Option<[f64; 3]>,
+}
+
+impl Lanes {
+    pub(crate) fn new(config: &DetectorConfig) -> Self {
+        // x bins cover the sensor's reach from any valid mount (|x| <= 10 m) plus its range.
+        let x_bins =
+            (((config.range_m + 11.0 - X_LO_M) / config.map_bin_m).ceil() as usize).clamp(1, 100_000);
+        Self {
+            model: None,
+            last_update_s: f64::NEG_INFINITY,
+            bins: vec![Bin::default(); ROWS * x_bins],
+            visible: vec![0; x_bins],
+            x_bins,
+            hist: vec![0.0; HIST_BINS],
+            end: None,
+        }
+    }
+
+    pub(crate) fn reset(&mut self) {
+        self.model = None;
+        self.end = None;
+        self.last_update_s = f64::NEG_INFINITY;
+    }
+
+    /// One scan: `canopy` and `cropped` points in `base_link`, `odom` its pose at `t_s`.
+    pub(crate) fn step(
+        &mut self,
+        canopy: &[[f32; 3]],
+        cropped: &[[f32; 3]],
+        odom: &Pose2,
+        t_s: f64,
+        config: &DetectorConfig,
+        map: &mut CentroidMap,
+        centroids: &mut Vec<[f64; 2]>,
+    ) -> LaneOutput {
+        centroids.clear();
+        if self.model.is_some() && t_s - self.last_update_s > config.lost_after_s {
+            self.model = None;
+            map.clear();
+        }
+        let predicted = match self.model {
+            Some((lane, pose)) => lane.transport(&pose, odom).filter(|l| l.is_sane(config)),
+            None => self.search(canopy, config),
+        };
+        let Some(predicted) = predicted else {
+            self.model = None;
+            return LaneOutput { row_end_ahead_m: self.end_ahead(odom), ..LaneOutput::default() };
+        };
+        if self.model.is_none() {
+            // A new lane hypothesis: evidence stored against an older one would only confuse it.
+            map.clear();
+        }
+        self.measure(canopy, cropped, &predicted, config);
+        self.store_centroids(odom, config, map);
+        let fitted = self.correct(&predicted, odom, config, map, centroids);
+        let updated = fitted.is_some();
+        let (lane, support, far_x_m) = match fitted {
+            Some((lane, support, far)) => (lane, support, far),
+            None => (predicted, [0.0; 2], [0.0; 2]),
+        };
+        if updated {
+            self.last_update_s = t_s;
+        } else if self.model.is_none() {
+            // A search hit that the map cannot confirm is not a lane yet.
+            return LaneOutput { row_end_ahead_m: self.end_ahead(odom), ..LaneOutput::default() };
+        }
+        self.model = Some((lane, *odom));
+        self.update_end(&lane, odom, config);
+        LaneOutput { lane: Some(lane), updated, support, far_x_m, row_end_ahead_m: self.end_ahead(odom) }
+    }
+
+    /// Start-up search for heading, spacing and phase from one scan's canopy.
+    fn search(&mut self, canopy: &[[f32; 3]], config: &DetectorConfig) -> Option<Lane> {
+        if canopy.len() < MIN_SEARCH_POINTS {
+            return None;
+        }
+        let stride = (canopy.len() / 3000).max(1);
+        let steps = config.heading_search_deg.round() as i32;
+        let mut best = (f64::NEG_INFINITY, 0.0);
+        for k in -steps..=steps {
+            let a = (k as f64).to_radians().tan();
+            self.fill_hist(canopy, a, stride);
+            let score: f64 = self.hist.iter().map(|c| c * c).sum();
+            if score > best.0 {
+                best = (score, a);
+            }
+        }
+        let a = best.1;
+        self.fill_hist(canopy, a, 1);
+        let s = self.spacing(config)?;
+        let (mut c, mut sn) = (0.0, 0.0);
+        for (i, h) in self.hist.iter().enumerate() {
+            let phase = std::f64::consts::TAU * hist_centre(i) / s;
+            c += h * phase.cos();
+            sn += h * phase.sin();
+        }
+        let row_centre = sn.atan2(c) * s / std::f64::consts::TAU;
+        let lane = Lane { o: row_centre + 0.5 * s, a, b: 0.0, s }.normalised();
+        lane.is_sane(config).then_some(lane)
+    }
+
+    fn fill_hist(&mut self, canopy: &[[f32; 3]], a: f64, stride: usize) {
+        self.hist.iter_mut().for_each(|h| *h = 0.0);
+        for p in canopy.iter().step_by(stride) {
+            let u = p[1] as f64 - a * p[0] as f64;
+            let i = ((u + HIST_HALF_M) / HIST_BIN_M).floor();
+            if i >= 0.0
+                && let Some(h) = self.hist.get_mut(i as usize)
+            {
+                *h += 1.0;
+            }
+        }
+    }
+
+    /// Row spacing from the autocorrelation of the lateral histogram: the strongest lag in the searched
+    /// range, halved when its half is nearly as strong (a lag of two spacings also correlates).
+    fn spacing(&mut self, config: &DetectorConfig) -> Option<f64> {
+        let mean = self.hist.iter().sum::<f64>() / HIST_BINS as f64;
+        self.hist.iter_mut().for_each(|h| *h -= mean);
+        let ac = |lag: usize| -> f64 {
+            let n = HIST_BINS - lag;
+            self.hist.iter().zip(&self.hist[lag..]).map(|(a, b)| a * b).sum::<f64>() / n as f64
+        };
+        let energy = ac(0);
+        if energy <= 0.0 {
+            return None;
+        }
+        let lo = (config.spacing_min_m / HIST_BIN_M).ceil() as usize;
+        let hi = ((config.spacing_max_m / HIST_BIN_M).floor() as usize).min(HIST_BINS / 2);
+        let mut best = (f64::NEG_INFINITY, lo);
+        for lag in lo..=hi {
+            let v = ac(lag);
+            if v > best.0 {
+                best = (v, lag);
+            }
+        }
+        let half = best.1 / 2;
+        if half >= lo {
+            // Search around the half lag: the true spacing may sit a bin off it.
+            let (v, lag) = (half.saturating_sub(2)..=half + 2)
+                .map(|l| (ac(l), l))
+                .fold((f64::NEG_INFINITY, half), |m, x| if x.0 > m.0 { x } else { m });
+            if v >= 0.7 * best.0 {
+                best = (v, lag);
+            }
+        }
+        if best.0 / energy < MIN_PERIODICITY {
+            return None;
+        }
+        // Parabolic refinement of the peak.
+        let lag = best.1;
+        let (l, c, r) = (ac(lag.saturating_sub(1)), best.0, ac(lag + 1));
+        let den = l - 2.0 * c + r;
+        let shift = if den < 0.0 { (0.5 * (l - r) / den).clamp(-0.5, 0.5) } else { 0.0 };
+        let s = (lag as f64 + shift) * HIST_BIN_M;
+        (s >= config.spacing_min_m && s <= config.spacing_max_m).then_some(s)
+    }
+
+    /// Bins the canopy points gated to the predicted rows, and the visible (any) points near the lane.
+    fn measure(&mut self, canopy: &[[f32; 3]], cropped: &[[f32; 3]], lane: &Lane, config: &DetectorConfig) {
+        self.bins.iter_mut().for_each(|b| *b = Bin::default());
+        self.visible.iter_mut().for_each(|v| *v = 0);
+        let gate = config.gate_fraction * lane.s;
+        let inv_bin = 1.0 / config.map_bin_m;
+        for p in canopy {
+            let (x, y) = (p[0] as f64, p[1] as f64);
+            let (j, d) = lane.assign(x, y);
+            if d.abs() > gate {
+                continue;
+            }
+            // Weighting by height squared favours the crest: a row seen from one side shows more of its
+            // near flank, and the flank would pull a plain mean towards the sensor.
+            let w = (p[2] as f64).powi(2) + HEIGHT_WEIGHT_FLOOR_M2;
+            if let Some(i) = self.bin_index(j, x, inv_bin)
+                && let Some(b) = self.bins.get_mut(i)
+            {
+                b.n += 1;
+                b.w += w;
+                b.sx += w * x;
+                b.sy += w * y;
+            }
+        }
+        let reach = 2.0 * lane.s;
+        for p in cropped {
+            let (x, y) = (p[0] as f64, p[1] as f64);
+            let xi = (x - X_LO_M) * inv_bin;
+            if (y - lane.centre(x)).abs() < reach
+                && xi >= 0.0
+                && let Some(v) = self.visible.get_mut(xi as usize)
+            {
+                *v += 1;
+            }
+        }
+    }
+
+    fn bin_index(&self, j: i32, x: f64, inv_bin: f64) -> Option<usize> {
+        let row = usize::try_from(j - J_MIN).ok().filter(|&r| r < ROWS)?;
+        let xi = (x - X_LO_M) * inv_bin;
+        (xi >= 0.0 && (xi as usize) < self.x_bins).then(|| row * self.x_bins + xi as usize)
+    }
+
+    fn store_centroids(&self, odom: &Pose2, config: &DetectorConfig, map: &mut CentroidMap) {
+        for b in self.bins.iter().filter(|b| b.n as usize >= config.map_min_points) {
+            let n = b.n as f64;
+            map.push(odom, b.sx / b.w, b.sy / b.w, n.min(FULL_WEIGHT_POINTS) / FULL_WEIGHT_POINTS);
+        }
+    }
+
+    /// Two-pass weighted least squares of `(o, s, a, b)` on the map, regularised towards `predicted`.
+    /// Returns the lane, the support and the farthest centroid of the first left and right rows.
+    fn correct(
+        &self,
+        predicted: &Lane,
+        odom: &Pose2,
+        config: &DetectorConfig,
+        map: &CentroidMap,
+        centroids: &mut Vec<[f64; 2]>,
+    ) -> Option<(Lane, [f64; 2], [f64; 2])> {
+        let x_max = config.range_m + 11.0;
+        let gate = config.gate_fraction * predicted.s;
+        let mut lane = *predicted;
+        let mut support = [0.0; 2];
+        let mut far = [0.0f64; 2];
+        for pass in 0..2 {
+            let mut n = Matrix4::<f64>::zeros();
+            let mut r = Vector4::<f64>::zeros();
+            let mut total = 0.0;
+            support = [0.0; 2];
+            far = [0.0; 2];
+            let last = pass == 1;
+            if last {
+                centroids.clear();
+            }
+            for p in map.points() {
+                let (x, y) = odom.inverse_transform_point(p[0], p[1]);
+                if x < -config.behind_m || x > x_max {
+                    continue;
+                }
+                let (j, d) = lane.assign(x, y);
+                if d.abs() > gate || !(J_MIN..J_MIN + ROWS as i32).contains(&j) {
+                    continue;
+                }
+                let robust = if pass == 0 { 1.0 } else { 1.0 / (1.0 + (d / CAUCHY_M).powi(2)) };
+                let w = p[2] * robust;
+                let phi = Vector4::new(1.0, j as f64 + 0.5, x, x * x);
+                n += w * phi * phi.transpose();
+                r += w * y * phi;
+                total += w;
+                if j == 0 || j == -1 {
+                    let k = usize::from(j == -1);
+                    support[k] += w;
+                    far[k] = far[k].max(x);
+                }
+                if last {
+                    centroids.push([x, y]);
+                }
+            }
+            if total < MIN_FIT_WEIGHT {
+                return None;
+            }
+            // Priors (information form): a lone row cannot tell the spacing, a short stretch cannot tell
+            // the curvature; both then stay at their prediction.
+            let curvature_weight = if config.fit_curvature { PRIOR_CURVATURE } else { 1e12 };
+            let b_prior = if config.fit_curvature { predicted.b } else { 0.0 };
+            for (i, (w, v)) in [
+                (PRIOR_FREE, predicted.o),
+                (PRIOR_SPACING, predicted.s),
+                (PRIOR_FREE, predicted.a),
+                (curvature_weight, b_prior),
+            ]
+            .into_iter()
+            .enumerate()
+            {
+                n[(i, i)] += w;
+                r[i] += w * v;
+            }
+            let p = n.cholesky()?.solve(&r);
+            lane = Lane { o: p[0], s: p[1], a: p[2], b: p[3] };
+            if !lane.is_sane(config) {
+                return None;
+            }
+        }
+        Some((lane.normalised(), support, far))
+    }
+
+    /// Locates where the canopy of the lane ends, from this scan's bins.
+    fn update_end(&mut self, lane: &Lane, odom: &Pose2, config: &DetectorConfig) {
+        let min = config.map_min_points as u32;
+        let mut last_canopy = None;
+        let mut last_seen = None;
+        for xi in 0..self.x_bins {
+            let canopy: u32 = NEAR_ROWS
+                .iter()
+                .filter_map(|&j| usize::try_from(j - J_MIN).ok())
+                .filter_map(|row| self.bins.get(row * self.x_bins + xi))
+                .map(|b| b.n)
+                .sum();
+            if canopy >= min {
+                last_canopy = Some(xi);
+            }
+            if self.visible.get(xi).is_some_and(|&v| v >= min) {
+                last_seen = Some(xi);
+            }
+        }
+        let upper = |xi: usize| X_LO_M + (xi + 1) as f64 * config.map_bin_m;
+        let (Some(c), Some(s)) = (last_canopy, last_seen) else { return };
+        if upper(s) - upper(c) >= config.end_empty_m {
+            let x = upper(c);
+            let (ex, ey) = odom.transform_point(x, lane.centre(x));
+            let dir = odom.yaw + (lane.a + 2.0 * lane.b * x).atan();
+            self.end = Some([ex, ey, dir]);
+        } else {
+            self.end = None;
+        }
+    }
+
+    fn end_ahead(&self, odom: &Pose2) -> Option<f64> {
+        self.end.map(|[ex, ey, dir]| (ex - odom.x) * dir.cos() + (ey - odom.y) * dir.sin())
+    }
+}
+
+fn hist_centre(i: usize) -> f64 {
+    -HIST_HALF_M + (i as f64 + 0.5) * HIST_BIN_M
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rows_of_points(offsets: &[f64], heading: f64) -> Vec<[f32; 3]> {
+        let mut pts = Vec::new();
+        for i in 0..250 {
+            let x = 1.5 + 0.012 * i as f64;
+            for &o in offsets {
+                for dy in [-0.06, -0.02, 0.02, 0.06] {
+                    pts.push([x as f32, (o + dy + heading.tan() * x) as f32, 0.1]);
+                }
+            }
+        }
+        pts
+    }
+
+    #[test]
+    fn search_finds_spacing_heading_and_phase() {
+        // Rows 0.75 m apart, lane centre at +0.1 m, heading 5°: spacing within 2 cm, heading within 1°,
+        // centre within 3 cm (one scan, no map yet).
+        let cfg = DetectorConfig::default();
+        let pts = rows_of_points(&[-1.025, -0.275, 0.475, 1.225], 5f64.to_radians());
+        let lane = Lanes::new(&cfg).search(&pts, &cfg).unwrap();
+        assert!((lane.s - 0.75).abs() < 0.02, "{lane:?}");
+        assert!((lane.a.atan() - 5f64.to_radians()).abs() < 1f64.to_radians(), "{lane:?}");
+        assert!((lane.o - 0.1).abs() < 0.03, "{lane:?}");
+    }
+
+    #[test]
+    fn transport_moves_the_lane_with_the_robot() {
+        let lane = Lane { o: 0.1, a: 0.0, b: 0.0, s: 0.75 };
+        let from = Pose2::new(0.0, 0.0, 0.0);
+        let to = Pose2::new(1.0, 0.05, 0.1);
+        let t = lane.transport(&from, &to).unwrap();
+        // The centre line y = 0.1 seen from (1, 0.05) yawed 0.1 rad: slope -tan 0.1, offset 0.05/cos 0.1.
+        assert!((t.a + 0.1f64.tan()).abs() < 1e-9, "{t:?}");
+        assert!((t.o - 0.05 / 0.1f64.cos()).abs() < 1e-9, "{t:?}");
+    }
+
+    #[test]
+    fn crossing_a_row_renumbers_the_rows() {
+        let lane = Lane { o: 0.5, a: 0.0, b: 0.0, s: 0.75 }.normalised();
+        assert!((lane.o + 0.25).abs() < 1e-12);
+    }
+}

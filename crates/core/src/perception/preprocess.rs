@@ -1,0 +1,199 @@
+//! Step 1 of both pipelines (paper Sec. III-A-1): one pass over the scan that maps each point to
+//! `base_link`, keeps the frontal field of view within range, then keeps the canopy: the points above a
+//! virtual ground plane.
+//!
+//! The plane is parallel to the ground (horizontal in `base_link`, which is how the paper's
+//! `v⊥ = R_y,θ · [0 0 1]ᵀ` reads once the mount rotation is applied) and sits at the height of the
+//! centroid of the cropped points (eqs. 1-2), raised by `plane_raise_m`. The default mode instead places
+//! it halfway between robust ground and canopy-top levels (5th and 95th height percentiles), which keeps
+//! low weeds and ground noise out even when most returns come from the ground.
+
+use crate::geometry::{Mount, Point3};
+
+use super::config::DetectorConfig;
+
+/// Height histogram bin, m, and its span below/above `base_link`'s origin for the robust plane.
+const Z_BIN_M: f32 = 0.01;
+const Z_MIN_M: f32 = -2.0;
+const Z_BINS: usize = 500;
+
+/// `base_link -> sensor` as f32 for the per-point loop.
+#[derive(Debug, Clone, Copy)]
+struct Frame {
+    r: [[f32; 3]; 3],
+    t: [f32; 3],
+}
+
+impl Frame {
+    fn new(mount: &Mount) -> Self {
+        let iso = mount.isometry();
+        let m = iso.rotation.to_rotation_matrix();
+        let mut r = [[0.0f32; 3]; 3];
+        for (i, row) in r.iter_mut().enumerate() {
+            for (j, v) in row.iter_mut().enumerate() {
+                *v = m[(i, j)] as f32;
+            }
+        }
+        let t = iso.translation.vector;
+        Self { r, t: [t.x as f32, t.y as f32, t.z as f32] }
+    }
+}
+
+/// Where the virtual ground plane goes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum PlaneRule {
+    /// Through the centroid of the cropped points (paper eqs. 1-2).
+    Centroid,
+    /// Halfway between the 5th and 95th height percentiles of the cropped points, at least
+    /// `min_plant_height_m` above the 5th.
+    Percentile,
+}
+
+/// Buffers of the preprocessing step, allocated once.
+#[derive(Debug, Clone)]
+pub(crate) struct Preprocessor {
+    /// Cropped points in `base_link`, m: ground and canopy.
+    pub(crate) cropped: Vec<[f32; 3]>,
+    /// Canopy points `(x, y, h)` in `base_link`, m, with `h` the height above the plane.
+    pub(crate) canopy: Vec<[f32; 3]>,
+    /// Height of the plane used on the last scan, m in `base_link`.
+    pub(crate) plane_z_m: f32,
+    z_hist: Vec<u32>,
+}
+
+impl Preprocessor {
+    pub(crate) fn new(capacity: usize) -> Self {
+        Self {
+            cropped: Vec::with_capacity(capacity),
+            canopy: Vec::with_capacity(capacity),
+            plane_z_m: 0.0,
+            z_hist: vec![0; Z_BINS],
+        }
+    }
+
+    /// Crops `points` and splits off the canopy. Returns the number of finite points in the scan.
+    /// Never allocates once the buffers have grown to the largest scan seen.
+    pub(crate) fn run(
+        &mut self,
+        points: &[Point3],
+        mount: &Mount,
+        config: &DetectorConfig,
+        rule: PlaneRule,
+    ) -> usize {
+        self.cropped.clear();
+        self.canopy.clear();
+        let f = Frame::new(mount);
+        let (r_max2, r_min2) =
+            ((config.range_m * config.range_m) as f32, (config.min_range_m * config.min_range_m) as f32);
+        let tan_half = (config.fov_deg.to_radians() * 0.5).tan() as f32;
+        let mut finite = 0usize;
+        let mut z_sum = 0.0f64;
+        for p in points {
+            if !p.is_finite() {
+                continue;
+            }
+            finite += 1;
+            let r2 = p.x * p.x + p.y * p.y + p.z * p.z;
+            if r2 > r_max2 || r2 < r_min2 {
+                continue;
+            }
+            // The FOV is horizontal, about the sensor origin, in base_link's heading: with a tilted
+            // sensor that is what "frontal 120°" means on the ground.
+            let dx = f.r[0][0] * p.x + f.r[0][1] * p.y + f.r[0][2] * p.z;
+            let dy = f.r[1][0] * p.x + f.r[1][1] * p.y + f.r[1][2] * p.z;
+            if dx <= 0.0 || dy.abs() > dx * tan_half {
+                continue;
+            }
+            let z = f.r[2][0] * p.x + f.r[2][1] * p.y + f.r[2][2] * p.z + f.t[2];
+            z_sum += z as f64;
+            self.cropped.push([dx + f.t[0], dy + f.t[1], z]);
+        }
+        if self.cropped.is_empty() {
+            self.plane_z_m = 0.0;
+            return finite;
+        }
+        let base = match rule {
+            PlaneRule::Centroid => (z_sum / self.cropped.len() as f64) as f32,
+            PlaneRule::Percentile => self.percentile_midpoint(config.min_plant_height_m as f32),
+        };
+        self.plane_z_m = base + config.plane_raise_m as f32;
+        let plane = self.plane_z_m;
+        self.canopy.extend(self.cropped.iter().filter(|p| p[2] > plane).map(|p| [p[0], p[1], p[2] - plane]));
+        finite
+    }
+
+    fn percentile_midpoint(&mut self, min_height_m: f32) -> f32 {
+        self.z_hist.iter_mut().for_each(|c| *c = 0);
+        for p in &self.cropped {
+            let i = ((p[2] - Z_MIN_M) / Z_BIN_M).clamp(0.0, (Z_BINS - 1) as f32) as usize;
+            if let Some(c) = self.z_hist.get_mut(i) {
+                *c += 1;
+            }
+        }
+        let n = self.cropped.len() as u64;
+        let (lo, hi) = (quantile_bin(&self.z_hist, n, 5), quantile_bin(&self.z_hist, n, 95));
+        let ground = Z_MIN_M + Z_BIN_M * (lo as f32 + 0.5);
+        (Z_MIN_M + Z_BIN_M * (lo + hi + 1) as f32 * 0.5).max(ground + min_height_m)
+    }
+}
+
+/// The bin holding the `pct`-th percentile of a histogram with `n` entries.
+fn quantile_bin(hist: &[u32], n: u64, pct: u64) -> usize {
+    let target = (n * pct).div_ceil(100).max(1);
+    let mut acc = 0u64;
+    for (i, &c) in hist.iter().enumerate() {
+        acc += c as u64;
+        if acc >= target {
+            return i;
+        }
+    }
+    hist.len().saturating_sub(1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sensor_point(mount: &Mount, base: [f64; 3]) -> Point3 {
+        let p = mount.isometry().inverse_transform_point(&nalgebra::Point3::new(base[0], base[1], base[2]));
+        Point3::new(p.x as f32, p.y as f32, p.z as f32)
+    }
+
+    #[test]
+    fn crops_fov_and_range_and_keeps_points_above_the_centroid() {
+        let mount = Mount::default();
+        let cfg = DetectorConfig::paper();
+        let pts = [
+            sensor_point(&mount, [2.5, 0.0, 0.0]), // ground ahead: kept, below the plane
+            sensor_point(&mount, [2.5, 0.4, 0.5]), // plant top ahead: canopy
+            sensor_point(&mount, [2.5, 5.0, 0.0]), // out of range
+            sensor_point(&mount, [0.7, 1.5, 0.0]), // ahead of the sensor by 0.1 m but 86° aside: out of FOV
+            sensor_point(&mount, [-1.0, 0.0, 0.0]), // behind the sensor
+            Point3::new(f32::NAN, 0.0, 0.0),
+        ];
+        let mut pre = Preprocessor::new(8);
+        let finite = pre.run(&pts, &mount, &cfg, PlaneRule::Centroid);
+        assert_eq!(finite, 5);
+        assert_eq!(pre.cropped.len(), 2);
+        assert!((pre.plane_z_m - 0.25).abs() < 1e-4, "{}", pre.plane_z_m);
+        assert_eq!(pre.canopy.len(), 1);
+        assert!((pre.canopy[0][0] - 2.5).abs() < 1e-4 && (pre.canopy[0][1] - 0.4).abs() < 1e-4);
+    }
+
+    #[test]
+    fn percentile_plane_ignores_a_ground_majority() {
+        let mount = Mount::default();
+        let cfg = DetectorConfig::default();
+        // 90 ground points and 10 canopy points at 0.4 m: the centroid (0.04 m) would let ground noise
+        // through; the percentile rule puts the plane near 0.2 m.
+        let mut pts = Vec::new();
+        for i in 0..100 {
+            let z = if i % 10 == 0 { 0.4 } else { 0.0 };
+            pts.push(sensor_point(&mount, [2.0 + 0.01 * i as f64, 0.0, z]));
+        }
+        let mut pre = Preprocessor::new(8);
+        pre.run(&pts, &mount, &cfg, PlaneRule::Percentile);
+        assert!((pre.plane_z_m - 0.2).abs() < 0.02, "{}", pre.plane_z_m);
+        assert_eq!(pre.canopy.len(), 10);
+    }
+}

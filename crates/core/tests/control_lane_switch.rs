@@ -1,0 +1,248 @@
+//! Lane-switching behaviour against the synthetic field of `control_field`, seen by an ideal detector. The closed-loop tests drive
+//! an ideal unicycle with the MPC; the transition tests place the robot directly.
+
+use croprow_core::control::lane_switch::{LaneSwitchConfig, LaneSwitcher, Mode, StopReason, TurnDirection};
+use croprow_core::control::mpc::{Mpc, MpcConfig, SolveStatus};
+use croprow_core::control::reference::ReferenceConfig;
+use croprow_core::{Detection, Pose2, RowStatus, Twist2};
+
+mod control_field;
+
+use control_field::{Field, PERIOD_S, SPACING, drive, lane_start};
+
+struct Run {
+    final_mode: Mode,
+    lanes_completed: u32,
+    lanes_seen: Vec<u32>,
+    contacts: usize,
+    max_excursion_m: f64,
+    modes: Vec<Mode>,
+}
+
+fn run(field: &Field, cfg: LaneSwitchConfig, start: Pose2, steps: usize) -> Run {
+    let mut sw = LaneSwitcher::new(cfg, ReferenceConfig::default()).unwrap();
+    let mut mpc = Mpc::new(MpcConfig::default()).unwrap();
+    let mut pose = start;
+    let mut prev = Twist2::ZERO;
+    let mut out = Run {
+        final_mode: Mode::Acquiring,
+        lanes_completed: 0,
+        lanes_seen: vec![],
+        contacts: 0,
+        max_excursion_m: 0.0,
+        modes: vec![],
+    };
+    for i in 0..steps {
+        let det = field.detect(i as f64 * PERIOD_S, &pose);
+        let g = sw.update(&pose, Some(&det));
+        if out.modes.last() != Some(&g.mode) {
+            out.modes.push(g.mode);
+        }
+        if out.lanes_seen.last() != Some(&g.lane) {
+            out.lanes_seen.push(g.lane);
+        }
+        let cmd = match sw.path() {
+            Some(path) if !g.mode.is_stopped() => {
+                let f = path.project(&pose, sw.progress_m());
+                let sol = mpc.solve(&f, path, g.speed_mps, prev, None);
+                assert_ne!(sol.status, SolveStatus::Failed);
+                sol.cmd
+            }
+            _ => Twist2::ZERO,
+        };
+        pose = drive(pose, cmd, PERIOD_S);
+        prev = cmd;
+        out.contacts += field.contacts(&pose);
+        out.final_mode = g.mode;
+        out.lanes_completed = g.lanes_completed;
+        if matches!(g.mode, Mode::Done | Mode::Stopped { .. }) {
+            break;
+        }
+    }
+    out.max_excursion_m = sw.max_excursion_m();
+    out
+}
+
+#[test]
+fn covers_four_lanes_alternating_turns_without_crop_contact() {
+    let field = Field { rows: 8, length_m: 8.0, blackout: None };
+    let cfg = LaneSwitchConfig { lanes: 4, first_turn: TurnDirection::Right, ..LaneSwitchConfig::default() };
+    let r = run(&field, cfg, lane_start(0), 4000);
+    assert_eq!(r.final_mode, Mode::Done, "modes {:?}", r.modes);
+    assert_eq!(r.lanes_completed, 4);
+    assert_eq!(r.lanes_seen, vec![0, 1, 2, 3]);
+    assert_eq!(r.contacts, 0);
+    assert!(r.max_excursion_m <= 1.5, "excursion {:.3} m", r.max_excursion_m);
+    let turns = r.modes.iter().filter(|m| **m == Mode::Turning).count();
+    assert_eq!(turns, 3);
+}
+
+#[test]
+fn skips_lanes_and_starts_from_any_lane() {
+    // 16 rows = 8 lanes; start in lane 5, turn left (towards lower lanes here: the field lies to the
+    // left of the robot when it drives back), skip one lane each time: lanes 5 -> 3 -> 1.
+    let field = Field { rows: 16, length_m: 6.0, blackout: None };
+    let cfg = LaneSwitchConfig {
+        lanes: 3,
+        start_lane: 5,
+        lane_step: 2,
+        first_turn: TurnDirection::Left,
+        ..LaneSwitchConfig::default()
+    };
+    let r = run(&field, cfg, lane_start(5), 4000);
+    assert_eq!(r.final_mode, Mode::Done, "modes {:?}", r.modes);
+    assert_eq!(r.lanes_completed, 3);
+    assert_eq!(r.contacts, 0);
+    assert!(r.max_excursion_m <= 1.5, "excursion {:.3} m", r.max_excursion_m);
+}
+
+#[test]
+fn stops_at_the_end_of_the_last_lane() {
+    let field = Field { rows: 4, length_m: 5.0, blackout: None };
+    let cfg = LaneSwitchConfig { lanes: 1, ..LaneSwitchConfig::default() };
+    let r = run(&field, cfg, lane_start(0), 2000);
+    assert_eq!(r.final_mode, Mode::Done);
+    assert_eq!(r.modes, vec![Mode::Following, Mode::ClearingRowEnd, Mode::Done]);
+    assert!(r.max_excursion_m >= LaneSwitchConfig::default().turn_start_m() - 0.06);
+}
+
+#[test]
+fn rows_missing_mid_row_stop_the_robot() {
+    let field = Field { rows: 4, length_m: 20.0, blackout: Some((5.0, 20.0)) };
+    let r = run(&field, LaneSwitchConfig::default(), lane_start(0), 2000);
+    assert_eq!(r.final_mode, Mode::Stopped { reason: StopReason::NoRows });
+}
+
+#[test]
+fn a_lane_off_the_field_is_never_entered_silently() {
+    // Turning right out of the last lane of a 4-row field: only the edge row is in view, and the lane
+    // it implies is not the planned one.
+    let field = Field { rows: 4, length_m: 5.0, blackout: None };
+    let cfg = LaneSwitchConfig { lanes: 3, ..LaneSwitchConfig::default() };
+    let r = run(&field, cfg, lane_start(1), 3000);
+    assert_eq!(r.final_mode, Mode::Stopped { reason: StopReason::WrongLane }, "modes {:?}", r.modes);
+    assert_eq!(r.lanes_completed, 1);
+    assert_eq!(r.contacts, 0);
+}
+
+#[test]
+fn an_unconfirmed_lane_stops_before_going_deep_into_the_field() {
+    // The detector sees nothing from 2 m before the row end on: the known row end carries the robot
+    // out, but the new lane can never be confirmed.
+    let field = Field { rows: 8, length_m: 10.0, blackout: Some((8.0, 12.0)) };
+    let cfg = LaneSwitchConfig { lanes: 2, ..LaneSwitchConfig::default() };
+    let r = run(&field, cfg.clone(), lane_start(0), 3000);
+    assert_eq!(
+        r.final_mode,
+        Mode::Stopped { reason: StopReason::ReentryNotConfirmed },
+        "modes {:?}",
+        r.modes
+    );
+    assert_eq!(r.lanes_completed, 1);
+    assert_eq!(r.contacts, 0);
+}
+
+// ----- single transitions, robot placed by hand -----
+
+fn switcher(cfg: LaneSwitchConfig) -> LaneSwitcher {
+    LaneSwitcher::new(cfg, ReferenceConfig::default()).unwrap()
+}
+
+fn field() -> Field {
+    Field { rows: 8, length_m: 10.0, blackout: None }
+}
+
+#[test]
+fn waits_stopped_until_rows_are_tracked() {
+    let mut sw = switcher(LaneSwitchConfig::default());
+    let g = sw.update(&lane_start(0), Some(&Detection::empty(0.0, RowStatus::Searching)));
+    assert_eq!((g.mode, g.speed_mps), (Mode::Acquiring, 0.0));
+    let g = sw.update(&lane_start(0), Some(&field().detect(0.1, &lane_start(0))));
+    assert_eq!(g.mode, Mode::Following);
+    assert!(g.speed_mps > 0.0);
+}
+
+#[test]
+fn rows_lost_status_stops_immediately() {
+    let mut sw = switcher(LaneSwitchConfig::default());
+    sw.update(&lane_start(0), Some(&field().detect(0.0, &lane_start(0))));
+    let g = sw.update(&lane_start(0), Some(&Detection::empty(0.1, RowStatus::Lost)));
+    assert_eq!(g.mode, Mode::Stopped { reason: StopReason::RowsLost });
+    assert_eq!(g.speed_mps, 0.0);
+    assert!(sw.path().is_none());
+    // Latched: rows coming back do not restart the robot by themselves.
+    let g = sw.update(&lane_start(0), Some(&field().detect(0.2, &lane_start(0))));
+    assert_eq!(g.mode, Mode::Stopped { reason: StopReason::RowsLost });
+    sw.resume();
+    assert_eq!(sw.mode(), Mode::Acquiring);
+}
+
+#[test]
+fn non_finite_odometry_stops() {
+    let mut sw = switcher(LaneSwitchConfig::default());
+    sw.update(&lane_start(0), Some(&field().detect(0.0, &lane_start(0))));
+    let g = sw.update(&Pose2::new(f64::NAN, 0.0, 0.0), None);
+    assert_eq!(g.mode, Mode::Stopped { reason: StopReason::InvalidOdometry });
+}
+
+#[test]
+fn reaching_the_row_end_starts_clearing_then_turning_with_a_detector_reset() {
+    let f = field();
+    let mut sw = switcher(LaneSwitchConfig::default());
+    let mut pose = lane_start(0);
+    sw.update(&pose, Some(&f.detect(0.0, &pose)));
+    let mut resets = 0;
+    let mut modes = vec![];
+    // Walk along the lane centre in 5 cm steps to 1 m past the row end.
+    while pose.x < f.length_m + 1.0 {
+        pose.x += 0.05;
+        let g = sw.update(&pose, Some(&f.detect(0.0, &pose)));
+        resets += usize::from(g.reset_detector);
+        if modes.last() != Some(&g.mode) {
+            modes.push(g.mode);
+            if g.mode == Mode::ClearingRowEnd {
+                assert!((pose.x - f.length_m).abs() < 0.051, "clearing began at x {}", pose.x);
+            }
+            if g.mode == Mode::Turning {
+                let start = LaneSwitchConfig::default().turn_start_m();
+                assert!((pose.x - f.length_m - start).abs() < 0.051, "turn began at x {}", pose.x);
+            }
+        }
+    }
+    assert_eq!(modes, vec![Mode::Following, Mode::ClearingRowEnd, Mode::Turning]);
+    assert_eq!(resets, 1);
+    // The planned turn goes right (first_turn default) by two row spacings.
+    let path = sw.path().unwrap();
+    let s_entry: f64 = path.segments().iter().take(3).map(|s| s.length_m).sum();
+    let entry = path.pose_at(s_entry);
+    assert!((entry.y - (lane_start(0).y - 2.0 * SPACING)).abs() < 1e-9, "{entry:?}");
+    assert!((entry.yaw.abs() - std::f64::consts::PI).abs() < 1e-9);
+}
+
+#[test]
+fn entering_a_lane_that_is_not_the_planned_one_stops() {
+    let f = field();
+    let mut sw = switcher(LaneSwitchConfig::default());
+    let mut pose = lane_start(0);
+    sw.update(&pose, Some(&f.detect(0.0, &pose)));
+    while sw.mode() != Mode::Turning {
+        pose.x += 0.05;
+        sw.update(&pose, Some(&f.detect(0.0, &pose)));
+    }
+    // Place the robot at the end of the turn, then show it rows centred half a lane off the plan.
+    let path = sw.path().unwrap().clone();
+    let s_entry: f64 = path.segments().iter().take(3).map(|s| s.length_m).sum();
+    let at_entry = path.pose_at(s_entry + 0.01);
+    let mut s = 0.0;
+    while s < s_entry + 0.01 {
+        s += 0.05;
+        sw.update(&path.pose_at(s.min(s_entry + 0.01)), None);
+    }
+    assert_eq!(sw.mode(), Mode::Entering);
+    // 0.3 m off: the rows then imply a centre line beyond the 0.25 m tolerance.
+    let shifted = Pose2::new(at_entry.x, at_entry.y + 0.3, at_entry.yaw);
+    for i in 0..3 {
+        sw.update(&at_entry, Some(&f.detect(i as f64, &shifted)));
+    }
+    assert_eq!(sw.mode(), Mode::Stopped { reason: StopReason::WrongLane });
+}
