@@ -1,0 +1,52 @@
+//! PointCloud2 decoding cost for a 29k-point Velodyne-like cloud (VLP-16: 16 rings x 1800 azimuths),
+//! from CDR bytes to `Vec<Point3>`: the per-scan work `croprow detect` does before the detector runs.
+//!
+//! `cargo bench -p croprow-io --bench decode -- --warm-up-time 1 --measurement-time 3`
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use croprow_core::Point3;
+use croprow_io::cloud::{self, PointFormat, Stamped};
+use croprow_io::msg::{self, PointCloud2};
+
+/// 16 rings x 1800 azimuth steps, ranges 2-20 m: the size of one VLP-16 sweep.
+fn vlp16_points() -> Vec<Point3> {
+    let mut points = Vec::with_capacity(16 * 1800);
+    for ring in 0..16 {
+        let elevation = (-15.0f32 + 2.0 * ring as f32).to_radians();
+        for step in 0..1800 {
+            let azimuth = (step as f32 * 0.2).to_radians();
+            let range = 2.0 + 18.0 * ((step * 7 + ring * 13) % 100) as f32 / 100.0;
+            points.push(Point3::new(
+                range * elevation.cos() * azimuth.cos(),
+                range * elevation.cos() * azimuth.sin(),
+                range * elevation.sin(),
+            ));
+        }
+    }
+    points
+}
+
+fn bench(c: &mut Criterion) {
+    let points = vlp16_points();
+    let mut out = Vec::new();
+    for (name, format) in [
+        ("velodyne_f32_18B", PointFormat::VELODYNE),
+        (
+            "xyz_f64_padded_be",
+            PointFormat { xyz_f64: true, padding: 8, big_endian: true, ..PointFormat::XYZ },
+        ),
+    ] {
+        let cloud = cloud::build(&Stamped::new(1.0, "velodyne"), &points, &[], &[], format).unwrap();
+        let bytes = msg::encode(&cloud).unwrap();
+        c.bench_function(&format!("decode_cdr_and_points_{name}_28800"), |b| {
+            b.iter(|| {
+                let cloud: PointCloud2<'_> = msg::decode(std::hint::black_box(&bytes)).unwrap();
+                cloud::decode(&cloud, &mut out).unwrap();
+                std::hint::black_box(out.len())
+            })
+        });
+    }
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
