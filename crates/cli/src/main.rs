@@ -24,6 +24,9 @@ enum Command {
     Detect(cmd::detect::Args),
     /// Extract every crop row of a whole-field point-cloud map (PCD, PLY, LAS, text) as GeoJSON.
     Rows(cmd::rows::Args),
+    /// Run the live ROS 2 node: point cloud + odometry in, /cmd_vel, rows, path and status out.
+    #[cfg(feature = "ros2")]
+    Node(cmd::node::Args),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -34,5 +37,7 @@ fn main() -> anyhow::Result<()> {
         Some(Command::DetectSim(a)) => cmd::detect_sim::run(a),
         Some(Command::Detect(a)) => cmd::detect::run(a),
         Some(Command::Rows(a)) => cmd::rows::run(a),
+        #[cfg(feature = "ros2")]
+        Some(Command::Node(a)) => cmd::node::run(a),
     }
 }

@@ -2,5 +2,7 @@
 
 pub mod detect;
 pub mod detect_sim;
+#[cfg(feature = "ros2")]
+pub mod node;
 pub mod rows;
 pub mod scenarios;

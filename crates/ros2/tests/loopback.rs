@@ -1,0 +1,129 @@
+//! The live node over real DDS, loopback only: two participants in this process on their own
+//! domain id, both restricted to 127.0.0.1 (no multicast). A fake robot publishes a synthetic
+//! `PointCloud2` of rows ahead at 10 Hz and odometry at 50 Hz and drives with the node's `/cmd_vel`;
+//! the node must command a finite, bounded, non-zero forward speed, and then, once the odometry
+//! stops, zero within about a second. The test ends by itself (deadline 50 s).
+
+mod support;
+
+use std::net::{IpAddr, Ipv4Addr};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::thread;
+use std::time::{Duration, Instant};
+
+use croprow_core::{Mount, Pose2, Twist2};
+use croprow_io::msg::{Odometry, PointCloud2, StringMsg, TfMessage, Twist};
+use croprow_ros2::dds::{self, advertise, reliable_qos, sensor_qos, subscribe, tf_static_qos};
+use croprow_ros2::{DdsOptions, LiveNode, NodeConfig};
+use ros2_client::{NodeName, NodeOptions};
+use support::Field;
+
+/// Not 0 (a ROS install on the same computer), and not another test's.
+const DOMAIN_ID: u16 = 73;
+const LOOPBACK: IpAddr = IpAddr::V4(Ipv4Addr::LOCALHOST);
+
+/// Sets the node's stop flag however the test ends, so its thread always finishes.
+struct StopOnDrop(Arc<AtomicBool>);
+
+impl Drop for StopOnDrop {
+    fn drop(&mut self) {
+        self.0.store(true, Ordering::Relaxed);
+    }
+}
+
+#[test]
+fn node_drives_over_loopback_dds_and_stops_when_odometry_stops() {
+    let deadline = Instant::now() + Duration::from_secs(50);
+    let cfg = NodeConfig::default();
+    let (v_max, w_max) = (cfg.mpc.speed_max_mps, cfg.mpc.yaw_rate_max_radps);
+    let stop = Arc::new(AtomicBool::new(false));
+    let guard = StopOnDrop(Arc::clone(&stop));
+    let options = DdsOptions { domain_id: DOMAIN_ID, networks: vec![LOOPBACK], ..DdsOptions::default() };
+    let node_thread = thread::spawn({
+        let stop = Arc::clone(&stop);
+        move || -> Result<(), croprow_ros2::DdsError> {
+            let mut node = LiveNode::new(cfg, &options)?;
+            node.run(&stop, |_| {})
+        }
+    });
+
+    // The fake robot.
+    let context = dds::context(DOMAIN_ID, &[LOOPBACK]).unwrap();
+    let mut robot = context
+        .new_node(
+            NodeName::new("/", "fake_robot").unwrap(),
+            NodeOptions::new().enable_rosout(false).start_parameter_services(false),
+        )
+        .unwrap();
+    let clouds = advertise::<PointCloud2<'static>>(&mut robot, "/velodyne_points", sensor_qos(2)).unwrap();
+    let odometry = advertise::<Odometry>(&mut robot, "/odometry/filtered", sensor_qos(10)).unwrap();
+    let tf_static = advertise::<TfMessage>(&mut robot, "/tf_static", tf_static_qos()).unwrap();
+    let cmd_vel = subscribe::<Twist>(&mut robot, "/cmd_vel", reliable_qos(10)).unwrap();
+    let status = subscribe::<StringMsg>(&mut robot, "/croprow/status", reliable_qos(10)).unwrap();
+    let mount = Mount::default();
+    tf_static.publish(support::tf_static(&mount)).unwrap();
+
+    let field = Field::default();
+    let mut pose = Pose2::new(0.0, 0.05, 0.03);
+    let mut cmd = Twist2::ZERO;
+    let mut moving_cmds = 0;
+    let mut odometry_stopped: Option<Instant> = None;
+    let mut stopped_after: Option<Duration> = None;
+    let mut last_status = String::new();
+    let start = Instant::now();
+    let mut slot = 0u64;
+    while Instant::now() < deadline && !node_thread.is_finished() {
+        slot += 1;
+        let t = 1000.0 + slot as f64 * 0.02;
+        pose = support::drive(pose, cmd, 0.02);
+        if odometry_stopped.is_none() {
+            odometry.publish(support::odometry(t, pose, cmd)).unwrap();
+        }
+        if slot.is_multiple_of(5) {
+            let points = field.scan(pose, &mount, slot);
+            clouds.publish(support::cloud(t, &points)).unwrap();
+        }
+        while let Ok(Some((m, _))) = status.take() {
+            last_status = m.data;
+        }
+        while let Ok(Some((twist, _))) = cmd_vel.take() {
+            let (v, w) = (twist.linear.x, twist.angular.z);
+            assert!(v.is_finite() && w.is_finite(), "non-finite command {twist:?}");
+            assert!(v.abs() <= v_max + 1e-9 && w.abs() <= w_max + 1e-9, "unbounded command {twist:?}");
+            cmd = Twist2::new(v, w);
+            match odometry_stopped {
+                None if v > 0.05 => moving_cmds += 1,
+                Some(at) if (v, w) == (0.0, 0.0) && stopped_after.is_none() => {
+                    stopped_after = Some(at.elapsed())
+                }
+                _ => {}
+            }
+        }
+        // Driving for a while (20 moving commands, about 1 s): now the odometry stops.
+        if odometry_stopped.is_none() && moving_cmds >= 20 {
+            eprintln!("driving after {:.1} s: {last_status}", start.elapsed().as_secs_f64());
+            odometry_stopped = Some(Instant::now());
+        }
+        if let Some(after) = stopped_after
+            && odometry_stopped.is_some_and(|at| at.elapsed() > after + Duration::from_millis(300))
+        {
+            break;
+        }
+        thread::sleep(Duration::from_millis(20));
+    }
+    drop(guard);
+    let node_result = node_thread.join().expect("the node thread panicked");
+    if let Err(e) = &node_result {
+        panic!("the node failed: {e}");
+    }
+
+    assert!(moving_cmds >= 20, "the node never drove (status: {last_status})");
+    let after = stopped_after.expect("the node never commanded zero after the odometry stopped");
+    eprintln!("zero command {:.3} s after the last odometry; status: {last_status}", after.as_secs_f64());
+    // 0.5 s stale window + one 50 ms control period + delivery; generous for a loaded 2-core machine.
+    assert!(after < Duration::from_millis(1500), "stopped only after {after:?}");
+    assert!(last_status.contains("stale_odometry"), "{last_status}");
+    assert_eq!(cmd, Twist2::ZERO);
+    node_result.expect("the node ran without error");
+}
