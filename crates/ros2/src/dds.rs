@@ -452,14 +452,30 @@ impl LiveNode {
         let now_s = self.epoch.elapsed().as_secs_f64();
         let mut errors = 0;
         drain(&inputs.tf_static, &mut errors, |m| core.on_tf_static(&m));
-        let wheel_imu = core.config().node.odometry == OdometrySource::WheelImu;
         let mut refused = 0;
-        drain(&inputs.odom, &mut errors, |m| {
-            let r = if wheel_imu { core.on_wheel_odometry(now_s, &m) } else { core.on_odometry(now_s, &m) };
-            refused += u64::from(r.is_err());
-        });
         if let Some(imu) = &inputs.imu {
-            drain(imu, &mut errors, |m| refused += u64::from(core.on_imu(&m).is_err()));
+            // The EKF takes samples in stamp order: wheel and IMU samples that arrived together are
+            // merged by stamp first (a sample older than the filter would be refused).
+            let (mut wheel, mut gyro) = (Vec::new(), Vec::new());
+            drain(&inputs.odom, &mut errors, |m| wheel.push(m));
+            drain(imu, &mut errors, |m| gyro.push(m));
+            let (mut w, mut g) = (wheel.iter().peekable(), gyro.iter().peekable());
+            loop {
+                let wheel_first = match (w.peek(), g.peek()) {
+                    (Some(a), Some(b)) => a.header.stamp.as_seconds() <= b.header.stamp.as_seconds(),
+                    (Some(_), None) => true,
+                    (None, Some(_)) => false,
+                    (None, None) => break,
+                };
+                let result = if wheel_first {
+                    w.next().map(|m| core.on_wheel_odometry(now_s, m))
+                } else {
+                    g.next().map(|m| core.on_imu(m))
+                };
+                refused += u64::from(result.is_some_and(|r| r.is_err()));
+            }
+        } else {
+            drain(&inputs.odom, &mut errors, |m| refused += u64::from(core.on_odometry(now_s, &m).is_err()));
         }
         let mut resume = false;
         drain(&inputs.resume, &mut errors, |_| resume = true);

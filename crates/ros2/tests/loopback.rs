@@ -2,7 +2,8 @@
 //! domain id, both restricted to 127.0.0.1 (no multicast). A fake robot publishes a synthetic
 //! `PointCloud2` of rows ahead at 10 Hz and odometry at 50 Hz and drives with the node's `/cmd_vel`;
 //! the node must command a finite, bounded, non-zero forward speed, and then, once the odometry
-//! stops, zero within about a second. The test ends by itself (deadline 50 s).
+//! stops, zero within about a second. A second test sets and reads the node's parameters (the
+//! config's dotted names) through the ROS 2 parameter services. Each test ends by itself.
 
 mod support;
 
@@ -16,11 +17,18 @@ use croprow_core::{Mount, Pose2, Twist2};
 use croprow_io::msg::{Odometry, PointCloud2, StringMsg, TfMessage, Twist};
 use croprow_ros2::dds::{self, advertise, reliable_qos, sensor_qos, subscribe, tf_static_qos};
 use croprow_ros2::{DdsOptions, LiveNode, NodeConfig};
-use ros2_client::{NodeName, NodeOptions};
+use ros2_client::rcl_interfaces::{
+    GetParametersRequest, GetParametersResponse, SetParametersRequest, SetParametersResponse,
+};
+use ros2_client::service::Client;
+use ros2_client::{
+    Message, Name, Node, NodeName, NodeOptions, Parameter, ParameterValue, ServiceMapping, ServiceTypeName,
+};
 use support::Field;
 
-/// Not 0 (a ROS install on the same computer), and not another test's.
+/// Not 0 (a ROS install on the same computer), and one per test.
 const DOMAIN_ID: u16 = 73;
+const PARAMETER_DOMAIN_ID: u16 = 74;
 const LOOPBACK: IpAddr = IpAddr::V4(Ipv4Addr::LOCALHOST);
 
 /// Sets the node's stop flag however the test ends, so its thread always finishes.
@@ -126,4 +134,104 @@ fn node_drives_over_loopback_dds_and_stops_when_odometry_stops() {
     assert!(last_status.contains("stale_odometry"), "{last_status}");
     assert_eq!(cmd, Twist2::ZERO);
     node_result.expect("the node ran without error");
+}
+
+/// Calls a service until it answers (the first requests may go out before discovery matched the
+/// server), at most until `deadline`.
+fn call<Req: Message + Clone + 'static, Resp: Message + 'static>(
+    client: &Client<Req, Resp>,
+    request: Req,
+    deadline: Instant,
+) -> Resp {
+    while Instant::now() < deadline {
+        if client.send_request(request.clone()).is_ok() {
+            let resend = Instant::now() + Duration::from_millis(500);
+            while Instant::now() < resend {
+                if let Ok(Some((_, response))) = client.receive_response() {
+                    return response;
+                }
+                thread::sleep(Duration::from_millis(10));
+            }
+        }
+    }
+    panic!("no answer from the node's parameter service");
+}
+
+fn service_client<Req: Message + Clone + 'static, Resp: Message + 'static>(
+    node: &mut Node,
+    service: &str,
+    type_name: &str,
+) -> Client<Req, Resp> {
+    let qos = reliable_qos(10);
+    node.create_client::<Req, Resp>(
+        ServiceMapping::Enhanced,
+        &Name::new("/croprow", service).unwrap(),
+        &ServiceTypeName::new("rcl_interfaces", type_name),
+        qos.clone(),
+        qos,
+    )
+    .unwrap()
+}
+
+#[test]
+fn parameters_are_the_config_dotted_names_and_are_validated() {
+    let deadline = Instant::now() + Duration::from_secs(40);
+    let stop = Arc::new(AtomicBool::new(false));
+    let guard = StopOnDrop(Arc::clone(&stop));
+    let options =
+        DdsOptions { domain_id: PARAMETER_DOMAIN_ID, networks: vec![LOOPBACK], ..DdsOptions::default() };
+    let node_thread = thread::spawn({
+        let stop = Arc::clone(&stop);
+        move || -> Result<(), croprow_ros2::DdsError> {
+            let mut node = LiveNode::new(NodeConfig::default(), &options)?;
+            node.run(&stop, |_| {})
+        }
+    });
+    let context = dds::context(PARAMETER_DOMAIN_ID, &[LOOPBACK]).unwrap();
+    let mut operator = context
+        .new_node(
+            NodeName::new("/", "operator").unwrap(),
+            NodeOptions::new().enable_rosout(false).start_parameter_services(false),
+        )
+        .unwrap();
+    let get = service_client::<GetParametersRequest, GetParametersResponse>(
+        &mut operator,
+        "get_parameters",
+        "GetParameters",
+    );
+    let set = service_client::<SetParametersRequest, SetParametersResponse>(
+        &mut operator,
+        "set_parameters",
+        "SetParameters",
+    );
+
+    let names = ["detector.range_m", "mpc.horizon_steps", "node.cloud_topic"].map(String::from).to_vec();
+    let values: Vec<ParameterValue> = call(&get, GetParametersRequest { names }, deadline)
+        .values
+        .into_iter()
+        .map(ParameterValue::from)
+        .collect();
+    assert_eq!(
+        values,
+        [
+            ParameterValue::Double(4.0),
+            ParameterValue::Integer(20),
+            ParameterValue::String("/velodyne_points".into())
+        ]
+    );
+
+    let assign = |name: &str, value: ParameterValue| SetParametersRequest {
+        parameter: vec![Parameter { name: name.into(), value }.into()],
+    };
+    let accepted = call(&set, assign("mpc.horizon_steps", ParameterValue::Integer(30)), deadline);
+    assert!(accepted.results.iter().all(|r| r.successful), "{:?}", accepted.results);
+    let refused = call(&set, assign("mpc.horizon_steps", ParameterValue::Integer(0)), deadline);
+    assert!(!refused.results[0].successful && refused.results[0].reason.contains("mpc.horizon_steps"));
+    let fixed = call(&set, assign("node.cloud_topic", ParameterValue::String("/points".into())), deadline);
+    assert!(!fixed.results[0].successful, "topics are fixed while the node runs");
+
+    let now = call(&get, GetParametersRequest { names: vec!["mpc.horizon_steps".into()] }, deadline);
+    assert_eq!(ParameterValue::from(now.values[0].clone()), ParameterValue::Integer(30));
+    drop(guard);
+    node_thread.join().expect("the node thread panicked").expect("the node ran without error");
 }
