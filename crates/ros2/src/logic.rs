@@ -308,8 +308,9 @@ impl NodeCore {
     }
 
     /// A scan received at `now_s`: decoded, paired with the odometry at its stamp and the mount, and
-    /// given to the navigator at once. Returns the step's output (also when the watchdog holds the
-    /// robot), or why the scan was not used.
+    /// given to the navigator at once; when newer odometry exists, a control step from it follows
+    /// and gives the command. Returns the output (also when the watchdog holds the robot), or why
+    /// the scan was not used.
     pub fn on_cloud(&mut self, now_s: f64, msg: &PointCloud2<'_>) -> Result<Output, InputError> {
         let result = self.scan(msg);
         let (stamp_s, pose, mount) = self.note(Stream::Cloud, result)?;
@@ -330,17 +331,31 @@ impl NodeCore {
             mpc_budget: self.budget(),
         };
         let nav = self.navigator.step(input);
-        let mut out = self.finish(nav);
-        if let Some(d) = &nav.detection {
-            out.rows =
-                Some(convert::rows(d, self.navigator.detector().centroids(), &self.cfg.node.base_frame));
-        }
-        out.path = Some(convert::path(
+        let rows = nav
+            .detection
+            .map(|d| convert::rows(&d, self.navigator.detector().centroids(), &self.cfg.node.base_frame));
+        let path = convert::path(
             self.navigator.lane_switcher().path(),
             step_s,
             &self.cfg.node.odom_frame,
             self.cfg.node.path_spacing_m,
-        ));
+        );
+        let mut out = self.finish(nav);
+        // The scan step ran from the pose at the scan's stamp, which odometry has usually passed by
+        // the time the cloud arrives: the command goes out from the newest pose.
+        if let Some(odom) = self.odom.filter(|o| o.stamp_s > step_s) {
+            let now = self.navigator.step(NavInput {
+                stamp_s: odom.stamp_s,
+                odom: odom.pose,
+                odom_twist: odom.twist,
+                scan: None,
+                mount: &mount,
+                mpc_budget: self.budget(),
+            });
+            out = self.finish(NavOutput { detection: nav.detection, ..now });
+        }
+        out.rows = rows;
+        out.path = Some(path);
         Ok(out)
     }
 

@@ -25,6 +25,10 @@ struct Run {
     mount: Mount,
     /// The sensor returns nothing (every point NaN, as an organised cloud marks missing returns).
     blind: bool,
+    /// A cloud reaches the node this long after its stamp (driver and transport latency), s.
+    scan_latency_s: f64,
+    /// Poses of the last slots, to see the scene as it was at a late scan's stamp.
+    past: Vec<(f64, Pose2)>,
     pose: Pose2,
     cmd: Twist2,
     t: f64,
@@ -39,6 +43,8 @@ impl Run {
             field: Field::default(),
             mount: Mount::default(),
             blind: false,
+            scan_latency_s: 0.0,
+            past: Vec::new(),
             pose: Pose2::new(0.0, 0.05, 0.03),
             cmd: Twist2::ZERO,
             t: 100.0,
@@ -55,6 +61,7 @@ impl Run {
             self.step += 1;
             self.t += ODOM_DT;
             self.pose = support::drive(self.pose, self.cmd, ODOM_DT);
+            self.past.push((self.t, self.pose));
             let f = feeds(self.t);
             let wheel_imu = self.node.config().node.odometry == OdometrySource::WheelImu;
             if f.odometry {
@@ -67,12 +74,16 @@ impl Run {
                 }
             }
             if f.cloud && self.step.is_multiple_of(5) {
+                // The scene at the scan's stamp: the newest slot not after it.
+                let stamp = self.t - self.scan_latency_s;
+                let seen_from =
+                    self.past.iter().rev().find(|(t, _)| *t <= stamp + 1e-9).map_or(self.pose, |p| p.1);
                 let points = if self.blind {
                     vec![Point3::new(f32::NAN, f32::NAN, f32::NAN); 1000]
                 } else {
-                    self.field.scan(self.pose, &self.mount, self.step)
+                    self.field.scan(seen_from, &self.mount, self.step)
                 };
-                let out = self.node.on_cloud(self.t, &support::cloud(self.t, &points));
+                let out = self.node.on_cloud(self.t, &support::cloud(stamp, &points));
                 if let Ok(out) = out {
                     self.apply(out);
                 }
@@ -115,6 +126,19 @@ fn follows_the_rows_with_finite_bounded_forward_commands() {
     assert!(run.pose.x > 3.0, "drove {:.2} m", run.pose.x);
     // Tolerance: a third of the 0.375 m half lane.
     assert!(run.pose.y.abs() < 0.12, "cross-track {:.3} m", run.pose.y);
+}
+
+#[test]
+fn late_scans_are_placed_at_their_stamp_and_the_command_uses_the_newest_odometry() {
+    let mut run = Run::new(NodeConfig::default());
+    run.scan_latency_s = 0.08;
+    run.run(12.0, all);
+    assert_eq!(run.last().halt, None, "{}", run.last().status.data);
+    let after_scan = run.outputs.iter().rev().find(|(_, o)| o.rows.is_some()).expect("a scan step");
+    let nav = after_scan.1.nav.expect("the navigator ran");
+    assert!(nav.detection.is_some(), "the scan's detection is reported");
+    assert!((nav.stamp_s - after_scan.0).abs() < 1e-9, "the command comes from the newest odometry");
+    assert!(run.pose.x > 3.0 && run.pose.y.abs() < 0.12, "x {:.2} y {:.3}", run.pose.x, run.pose.y);
 }
 
 #[test]
