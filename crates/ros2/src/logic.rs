@@ -408,6 +408,14 @@ impl NodeCore {
         if !pose.is_finite() || !twist.is_finite() {
             return Err(InputError::Odometry("pose or twist is not finite".into()));
         }
+        // A zero or garbage orientation still yields some yaw: refuse it rather than drive on it.
+        let q = msg.pose.pose.orientation;
+        let norm = (q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w).sqrt();
+        if !(0.9..=1.1).contains(&norm) {
+            return Err(InputError::Odometry(format!(
+                "orientation quaternion of norm {norm} is not a rotation"
+            )));
+        }
         let base = &self.cfg.node.base_frame;
         if !msg.child_frame_id.is_empty() && msg.child_frame_id != *base {
             return Err(InputError::Odometry(format!(

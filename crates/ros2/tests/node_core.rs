@@ -280,6 +280,9 @@ fn non_finite_or_foreign_odometry_is_refused_and_reported() {
     let mut bad = support::odometry(1.0, Pose2::new(f64::NAN, 0.0, 0.0), Twist2::ZERO);
     assert!(node.on_odometry(1.0, &bad).is_err());
     bad = support::odometry(1.0, Pose2::default(), Twist2::ZERO);
+    bad.pose.pose.orientation.w = 0.0;
+    assert!(node.on_odometry(1.0, &bad).unwrap_err().to_string().contains("quaternion"));
+    bad = support::odometry(1.0, Pose2::default(), Twist2::ZERO);
     bad.child_frame_id = "base_footprint".into();
     assert!(node.on_odometry(1.0, &bad).unwrap_err().to_string().contains("base_footprint"));
     let out = node.tick(1.0);
