@@ -454,26 +454,10 @@ impl LiveNode {
         drain(&inputs.tf_static, &mut errors, |m| core.on_tf_static(&m));
         let mut refused = 0;
         if let Some(imu) = &inputs.imu {
-            // The EKF takes samples in stamp order: wheel and IMU samples that arrived together are
-            // merged by stamp first (a sample older than the filter would be refused).
             let (mut wheel, mut gyro) = (Vec::new(), Vec::new());
             drain(&inputs.odom, &mut errors, |m| wheel.push(m));
             drain(imu, &mut errors, |m| gyro.push(m));
-            let (mut w, mut g) = (wheel.iter().peekable(), gyro.iter().peekable());
-            loop {
-                let wheel_first = match (w.peek(), g.peek()) {
-                    (Some(a), Some(b)) => a.header.stamp.as_seconds() <= b.header.stamp.as_seconds(),
-                    (Some(_), None) => true,
-                    (None, Some(_)) => false,
-                    (None, None) => break,
-                };
-                let result = if wheel_first {
-                    w.next().map(|m| core.on_wheel_odometry(now_s, m))
-                } else {
-                    g.next().map(|m| core.on_imu(m))
-                };
-                refused += u64::from(result.is_some_and(|r| r.is_err()));
-            }
+            refused += core.on_wheel_imu_batch(now_s, &wheel, &gyro) as u64;
         } else {
             drain(&inputs.odom, &mut errors, |m| refused += u64::from(core.on_odometry(now_s, &m).is_err()));
         }

@@ -307,6 +307,25 @@ impl NodeCore {
         self.note(Stream::Imu, result)
     }
 
+    /// Wheel and IMU samples that arrived together, given to the EKF in stamp order (each list in
+    /// its own arrival order); returns how many were refused (the status shows the last reason).
+    pub fn on_wheel_imu_batch(&mut self, now_s: f64, wheel: &[Odometry], imu: &[Imu]) -> usize {
+        let (mut w, mut g) = (wheel.iter().peekable(), imu.iter().peekable());
+        let mut refused = 0;
+        loop {
+            let result = match (w.peek(), g.peek()) {
+                (Some(a), Some(b)) if a.header.stamp.as_seconds() <= b.header.stamp.as_seconds() => {
+                    w.next().map(|m| self.on_wheel_odometry(now_s, m))
+                }
+                (Some(_), None) => w.next().map(|m| self.on_wheel_odometry(now_s, m)),
+                (_, Some(_)) => g.next().map(|m| self.on_imu(m)),
+                (None, None) => break,
+            };
+            refused += usize::from(result.is_some_and(|r| r.is_err()));
+        }
+        refused
+    }
+
     /// A scan received at `now_s`: decoded, paired with the odometry at its stamp and the mount, and
     /// given to the navigator at once; when newer odometry exists, a control step from it follows
     /// and gives the command. Returns the output (also when the watchdog holds the robot), or why
@@ -684,6 +703,23 @@ mod tests {
         let mut node = NodeCore::new(cfg).unwrap();
         assert!(matches!(node.on_odometry(0.0, &odom(1.0)), Err(InputError::WrongSource(_))));
         node.on_wheel_odometry(0.0, &odom(1.0)).unwrap();
+    }
+
+    #[test]
+    fn wheel_and_imu_samples_are_fused_in_stamp_order() {
+        let mut cfg = NodeConfig::default();
+        cfg.node.odometry = OdometrySource::WheelImu;
+        let imu = |t: f64| Imu {
+            header: Header { stamp: croprow_io::msg::Time::from_seconds(t).unwrap(), frame_id: "imu".into() },
+            ..Imu::default()
+        };
+        let wheel = [odom(1.00), odom(1.02)];
+        let gyro = [imu(0.99), imu(1.01), imu(1.03)];
+        let mut node = NodeCore::new(cfg.clone()).unwrap();
+        assert_eq!(node.on_wheel_imu_batch(0.0, &wheel, &gyro), 0);
+        // Fed stream by stream instead, the gyro samples older than the last wheel sample are refused.
+        let mut node = NodeCore::new(cfg).unwrap();
+        assert_eq!(node.on_wheel_imu_batch(0.0, &wheel, &[]) + node.on_wheel_imu_batch(0.0, &[], &gyro), 2);
     }
 
     #[test]
