@@ -24,6 +24,8 @@ enum Command {
     Detect(cmd::detect::Args),
     /// Extract every crop row of a whole-field point-cloud map (PCD, PLY, LAS, text) as GeoJSON.
     Rows(cmd::rows::Args),
+    /// Quick benchmark of the detector, the closed-loop simulation and the MPC (`--json` for one object).
+    Bench(cmd::bench::Args),
     /// Run the live ROS 2 node: point cloud + odometry in, /cmd_vel, rows, path and status out.
     #[cfg(feature = "ros2")]
     Node(cmd::node::Args),
@@ -37,6 +39,7 @@ fn main() -> anyhow::Result<()> {
         Some(Command::DetectSim(a)) => cmd::detect_sim::run(a),
         Some(Command::Detect(a)) => cmd::detect::run(a),
         Some(Command::Rows(a)) => cmd::rows::run(a),
+        Some(Command::Bench(a)) => cmd::bench::run(a),
         #[cfg(feature = "ros2")]
         Some(Command::Node(a)) => cmd::node::run(a),
     }

@@ -18,12 +18,14 @@
 pub mod control;
 pub mod error;
 pub mod geometry;
+pub mod mapping;
 pub mod navigator;
 pub mod odometry;
 pub mod perception;
 
 pub use error::ConfigError;
 pub use geometry::{Mount, Point3, Pose2, Twist2};
+pub use mapping::RowMap;
 pub use navigator::{NavInput, NavOutput, Navigator, NavigatorConfig};
 pub use perception::{Detection, RowEstimate, RowStatus, Scan};
 pub use perception::{DetectorConfig, DetectorMode, RowDetector};

@@ -25,6 +25,7 @@ use crate::control::path::Frenet;
 use crate::control::reference::ReferenceConfig;
 use crate::error::ConfigError;
 use crate::geometry::{Mount, Pose2, Twist2};
+use crate::odometry::EkfConfig;
 use crate::perception::{Detection, DetectorConfig, RowDetector, Scan};
 
 /// The whole navigation configuration: one section per stage, with the same dotted names in config
@@ -40,6 +41,9 @@ pub struct NavigatorConfig {
     pub mpc: MpcConfig,
     /// Lane switching and headland turns.
     pub lane_switch: LaneSwitchConfig,
+    /// Odometry EKF. Not run by the navigator (its input is already filtered odometry); kept in the
+    /// same tree so the simulator and the ROS node build their [`crate::odometry::Ekf`] from one file.
+    pub ekf: EkfConfig,
 }
 
 impl NavigatorConfig {
@@ -49,6 +53,7 @@ impl NavigatorConfig {
         self.reference.validate()?;
         self.mpc.validate()?;
         self.lane_switch.validate()?;
+        self.ekf.validate()?;
         Ok(())
     }
 }

@@ -69,6 +69,7 @@ fn covers_four_lanes_alternating_turns_without_crop_contact() {
     let cfg = LaneSwitchConfig { lanes: 4, first_turn: TurnDirection::Right, ..LaneSwitchConfig::default() };
     let r = run(&field, cfg, lane_start(0), 4000);
     assert_eq!(r.final_mode, Mode::Done, "modes {:?}", r.modes);
+    eprintln!("4 lanes: max headland excursion {:.3} m, crop contacts {}", r.max_excursion_m, r.contacts);
     assert_eq!(r.lanes_completed, 4);
     assert_eq!(r.lanes_seen, vec![0, 1, 2, 3]);
     assert_eq!(r.contacts, 0);
@@ -245,4 +246,38 @@ fn entering_a_lane_that_is_not_the_planned_one_stops() {
         sw.update(&at_entry, Some(&f.detect(i as f64, &shifted)));
     }
     assert_eq!(sw.mode(), Mode::Stopped { reason: StopReason::WrongLane });
+}
+
+#[test]
+fn an_end_of_row_without_distance_assumes_the_configured_one() {
+    let cfg = LaneSwitchConfig::default();
+    let ahead = cfg.default_row_end_ahead_m;
+    let mut sw = switcher(cfg);
+    let pose = lane_start(0);
+    sw.update(&pose, Some(&field().detect(0.0, &pose)));
+    let end = Detection { row_end_ahead_m: None, ..field().detect(0.1, &pose) };
+    let end = Detection { status: RowStatus::EndOfRow, ..end };
+    let g = sw.update(&pose, Some(&end));
+    assert_eq!(g.mode, Mode::ClearingRowEnd);
+    let row_end = sw.row_end().unwrap();
+    assert!((row_end.x - (pose.x + ahead)).abs() < 1e-9 && (row_end.y - pose.y).abs() < 1e-9, "{row_end:?}");
+}
+
+#[test]
+fn rows_lost_close_to_a_seen_row_end_are_expected() {
+    let f = field();
+    let mut sw = switcher(LaneSwitchConfig::default());
+    // 2 m before the end of a 10 m row: the end is in view.
+    let pose = Pose2::new(8.0, lane_start(0).y, 0.0);
+    sw.update(&pose, Some(&f.detect(0.0, &pose)));
+    let lost = Detection { row_end_ahead_m: Some(1.9), ..Detection::empty(0.1, RowStatus::Lost) };
+    let g = sw.update(&Pose2::new(8.1, pose.y, 0.0), Some(&lost));
+    assert_eq!(g.mode, Mode::Following);
+    assert!(g.speed_mps > 0.0);
+    // Far from any row end, the same status stops the robot.
+    let mut sw = switcher(LaneSwitchConfig::default());
+    let pose = Pose2::new(2.0, lane_start(0).y, 0.0);
+    sw.update(&pose, Some(&f.detect(0.0, &pose)));
+    let g = sw.update(&pose, Some(&Detection { row_end_ahead_m: Some(8.0), ..lost }));
+    assert_eq!(g.mode, Mode::Stopped { reason: StopReason::RowsLost });
 }

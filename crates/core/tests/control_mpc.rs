@@ -51,6 +51,7 @@ fn recovers_on_a_straight_row_from_30_cm_and_8_degrees() {
         let mut mpc = Mpc::new(MpcConfig::default()).unwrap();
         let trace = closed_loop(&path, Pose2::new(0.0, dy, dyaw.to_radians()), 0.5, 150, &mut mpc);
         let settle = settle_distance(&trace, 0.02);
+        eprintln!("straight, start ({dy} m, {dyaw}°): under 2 cm for good after {settle:.2} m");
         assert!(settle < 3.0, "start ({dy}, {dyaw}°): settled after {settle:.2} m");
     }
 }
@@ -65,9 +66,11 @@ fn recovers_on_a_curved_row() {
     let mut mpc = Mpc::new(MpcConfig::default()).unwrap();
     let trace = closed_loop(&path, Pose2::new(0.0, 0.3, (-8f64).to_radians()), 0.5, 300, &mut mpc);
     let settle = settle_distance(&trace, 0.02);
+    eprintln!("curved: under 2 cm for good after {settle:.2} m");
     assert!(settle < 3.0, "settled after {settle:.2} m");
     // Across the curvature changes it stays within 2 cm.
     let worst = trace.iter().filter(|t| t.0 > 3.0 && t.0 < 34.0).map(|t| t.1).fold(0.0, f64::max);
+    eprintln!("curved: worst lateral error after settling {worst:.4} m");
     assert!(worst < 0.02, "worst lateral after settling {worst:.4} m");
 }
 
@@ -146,4 +149,29 @@ fn non_finite_path_stops() {
     path.push(Pose2::new(0.0, 0.0, 0.0), 10.0, f64::NAN);
     let sol = mpc.solve(&Default::default(), &path, 0.5, Twist2::new(0.5, 0.0), None);
     assert_eq!((sol.status, sol.cmd), (SolveStatus::Failed, Twist2::ZERO));
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(200))]
+
+    /// Whatever finite state, curvature and speed it is given, the command is finite and bounded.
+    #[test]
+    fn any_finite_input_gives_a_finite_bounded_command(
+        lateral in -1e3f64..1e3,
+        heading in -10.0f64..10.0,
+        curvature in -5.0f64..5.0,
+        speed in -10.0f64..10.0,
+        prev_v in -5.0f64..5.0,
+        prev_w in -5.0f64..5.0,
+    ) {
+        let cfg = MpcConfig::default();
+        let mut mpc = Mpc::new(cfg.clone()).unwrap();
+        let mut path = Path::with_capacity(1);
+        path.push(Pose2::new(0.0, 0.0, 0.0), 10.0, curvature);
+        let state = croprow_core::control::Frenet { s_m: 0.0, lateral_m: lateral, heading_rad: heading, curvature_per_m: curvature };
+        let sol = mpc.solve(&state, &path, speed, Twist2::new(prev_v, prev_w), None);
+        proptest::prop_assert!(sol.cmd.is_finite());
+        proptest::prop_assert!(sol.cmd.v >= cfg.speed_min_mps && sol.cmd.v <= cfg.speed_max_mps);
+        proptest::prop_assert!(sol.cmd.omega.abs() <= cfg.yaw_rate_max_radps);
+    }
 }

@@ -10,10 +10,11 @@ use croprow_core::{Mount, Point3, Pose2, RowStatus, Scan, Twist2};
 
 #[test]
 fn config_round_trips_through_toml_with_per_stage_sections() {
-    let text = "[mpc]\nhorizon_steps = 30\n\n[lane_switch]\nlanes = 3\nfirst_turn = \"left\"\n";
+    let text = "[mpc]\nhorizon_steps = 30\n\n[lane_switch]\nlanes = 3\nfirst_turn = \"left\"\n\n[ekf]\nmax_gap_s = 1.0\n";
     let cfg: NavigatorConfig = toml::from_str(text).unwrap();
     assert_eq!(cfg.mpc.horizon_steps, 30);
     assert_eq!(cfg.lane_switch.lanes, 3);
+    assert_eq!(cfg.ekf.max_gap_s, 1.0);
     let back: NavigatorConfig = toml::from_str(&toml::to_string(&cfg).unwrap()).unwrap();
     assert_eq!(back, cfg);
     assert!(toml::from_str::<NavigatorConfig>("[mpc]\nhorizon = 3\n").is_err(), "unknown fields are refused");
@@ -126,6 +127,7 @@ fn recovers_from_30_cm_and_8_degrees_within_3_m() {
     let (trace, _) = closed_loop(&field, NavigatorConfig::default(), start, 20.0);
     let last_bad = trace.iter().rposition(|t| t.1 >= 0.02).unwrap_or(0);
     let settle = trace.get(last_bad + 1).map_or(f64::INFINITY, |t| t.0);
+    eprintln!("navigator recovery from 0.3 m / 8 deg: under 2 cm for good after {settle:.2} m");
     assert!(settle < 3.0, "settled after {settle:.2} m");
 }
 

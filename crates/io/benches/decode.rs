@@ -2,6 +2,8 @@
 //! from CDR bytes to `Vec<Point3>`: the per-scan work `croprow detect` does before the detector runs.
 //!
 //! `cargo bench -p croprow-io --bench decode -- --warm-up-time 1 --measurement-time 3`
+//!
+//! The `sample_*` pair compares decoding with detection on the 23 real scans of the shared recording.
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use croprow_core::Point3;
@@ -49,4 +51,50 @@ fn bench(c: &mut Criterion) {
 }
 
 criterion_group!(benches, bench);
-criterion_main!(benches);
+
+/// The shared recording (`../shared/data` from the repository root, or `$CROPROW_SHARED_DATA`):
+/// decoding all 23 real scans vs running the default detector on them. Divide by 23 for per-scan times.
+fn sample_scans(c: &mut Criterion) {
+    use croprow_core::{DetectorConfig, RowDetector};
+    use croprow_io::read::{Recording, ReplayConfig};
+    let dir = std::env::var_os("CROPROW_SHARED_DATA")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"));
+    let path = dir.join("sample-young-corn.mcap");
+    let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let raw: Vec<Vec<u8>> = mcap::MessageStream::new(&bytes)
+        .unwrap()
+        .map(|m| m.unwrap())
+        .filter(|m| m.channel.topic == "/velodyne_points")
+        .map(|m| m.data.into_owned())
+        .collect();
+    let mut frames = Vec::new();
+    let mut replay = Recording::open(&path).unwrap().replay(&ReplayConfig::default()).unwrap();
+    while let Some(f) = replay.next_scan() {
+        let f = f.unwrap();
+        frames.push((f.stamp_s, f.points.to_vec(), f.odom_pose.unwrap(), f.mount));
+    }
+    assert_eq!(raw.len(), 23);
+    let mut out = Vec::new();
+    c.bench_function("sample_decode_23_scans", |b| {
+        b.iter(|| {
+            for r in &raw {
+                let cloud: PointCloud2<'_> = msg::decode(r).unwrap();
+                cloud::decode(&cloud, &mut out).unwrap();
+            }
+            std::hint::black_box(out.len())
+        })
+    });
+    c.bench_function("sample_detect_23_scans", |b| {
+        b.iter(|| {
+            let mut detector = RowDetector::new(DetectorConfig::default()).unwrap();
+            for (stamp_s, points, pose, mount) in &frames {
+                let scan = croprow_core::Scan { stamp_s: *stamp_s, points };
+                std::hint::black_box(detector.detect(scan, *pose, mount));
+            }
+        })
+    });
+}
+
+criterion_group!(sample, sample_scans);
+criterion_main!(benches, sample);

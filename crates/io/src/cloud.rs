@@ -174,6 +174,22 @@ impl Layout {
         out.clear();
         out.reserve(self.len());
         let uniform = self.types[0] == self.types[1] && self.types[1] == self.types[2];
+        let [ox, oy, oz] = self.offsets;
+        // x, y, z packed one after the other (nearly every driver): one fixed-size read per point.
+        if uniform && self.types[0] == Scalar::F32 && !self.big_endian && oy == ox + 4 && oz == ox + 8 {
+            for row in self.rows(data) {
+                out.extend(row.chunks_exact(self.point_step).map(|p| {
+                    match p.get(ox..).and_then(|b| b.first_chunk::<12>()) {
+                        Some(b) => {
+                            let c = |i: usize| f32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]);
+                            Point3::new(c(0), c(4), c(8))
+                        }
+                        None => Point3::new(f32::NAN, f32::NAN, f32::NAN),
+                    }
+                }));
+            }
+            return Ok(());
+        }
         match (uniform, self.types[0], self.big_endian) {
             (true, Scalar::F32, false) => {
                 self.decode_with(data, out, |b, o| read_f32(b, o, f32::from_le_bytes))

@@ -10,6 +10,7 @@
 #![warn(missing_docs)]
 
 pub mod cloud;
+pub mod maps;
 pub mod msg;
 pub mod odom;
 pub mod read;

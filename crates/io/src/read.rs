@@ -733,11 +733,14 @@ impl Replay {
             if let Some(e) = fault.or_else(|| self.state.error.take()) {
                 return Some(Err(e));
             }
+            // Without a summary the topics are only known at the end of the file.
+            let config = &self.state.config;
+            let has_odom = self.state.channels.values().any(|c| c.topic == config.odom_topic);
             if self.state.clouds_seen == 0 {
-                return Some(Err(missing_topic(
-                    &self.state.config.cloud_topic,
-                    self.state.channels.values(),
-                )));
+                return Some(Err(missing_topic(&config.cloud_topic, self.state.channels.values())));
+            }
+            if !has_odom {
+                return Some(Err(missing_topic(&config.odom_topic, self.state.channels.values())));
             }
             return None;
         }

@@ -185,3 +185,12 @@ fn scans_outside_odometry_have_no_pose() {
     assert!(f.odom_pose.is_err(), "1 s before the first odometry sample: no pose, not a guess");
     assert!(replay.next_scan().is_none());
 }
+
+#[test]
+fn missing_odometry_topic_is_named() {
+    let p = write_temp("no-odom-topic.mcap", &write_fixture(Fixture::small(PointFormat::XYZ)));
+    let config = ReplayConfig { odom_topic: "/odom".into(), ..ReplayConfig::default() };
+    let e = drain(&p, &config).1.unwrap();
+    assert!(matches!(e, RecordingError::MissingTopic { ref topic, .. } if topic == "/odom"), "{e}");
+    assert!(e.to_string().contains("/odometry/filtered (nav_msgs/msg/Odometry)"), "{e}");
+}

@@ -167,7 +167,6 @@ impl NodeConfig {
     /// Validates every section.
     pub fn validate(&self) -> Result<(), ConfigError> {
         self.navigator().validate()?;
-        self.ekf.validate()?;
         self.mount.validate()?;
         self.node.validate()
     }
@@ -179,6 +178,7 @@ impl NodeConfig {
             reference: self.reference.clone(),
             mpc: self.mpc.clone(),
             lane_switch: self.lane_switch.clone(),
+            ekf: self.ekf.clone(),
         }
     }
 

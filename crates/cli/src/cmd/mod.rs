@@ -1,5 +1,6 @@
 //! One module per subcommand: argument struct + `run`.
 
+pub mod bench;
 pub mod detect;
 pub mod detect_sim;
 #[cfg(feature = "ros2")]

@@ -12,7 +12,8 @@
 //!                       └──────────── new lane confirmed by the detector, robot aligned ──────────────┘
 //!                                                       ▼
 //!                                                      Done
-//! Following: rows Lost, or no row for `max_blind_distance_m` ─► Stopped { RowsLost | NoRows }
+//! Following: rows Lost, or no row for `max_blind_distance_m`, farther than `end_approach_m`
+//!            from a row end the detector has seen ─► Stopped { RowsLost | NoRows }
 //! Entering:  rows disagree with the planned lane ─► Stopped { WrongLane };
 //!            too deep into the field unconfirmed ─► Stopped { ReentryNotConfirmed }
 //! ```
@@ -97,6 +98,10 @@ pub struct LaneSwitchConfig {
     pub max_headland_excursion_m: f64,
     /// Distance driven without any row while following before stopping, m. Default 1.0.
     pub max_blind_distance_m: f64,
+    /// Distance to a row end the detector has seen within which missing or lost rows are expected
+    /// and the robot drives on to the end, m. Default 2.5: the paper's mount sees no canopy nearer
+    /// than about 1.6 m ahead of `base_link`, and the end estimate wobbles by a few decimetres.
+    pub end_approach_m: f64,
     /// Largest lateral offset between the detected and the planned centre line of a new lane, m.
     /// Default 0.25 (a third of a row spacing: a neighbouring lane is 0.75 m or more away).
     pub entry_lateral_tolerance_m: f64,
@@ -109,7 +114,10 @@ pub struct LaneSwitchConfig {
     pub entry_confirmations: u32,
     /// Deepest `base_link` may go into the field before the new lane is confirmed, m. Default 1.0.
     pub max_unconfirmed_entry_m: f64,
-    /// Distance to the row end assumed when the detector reports the end without one, m. Default 0.
+    /// Distance to the row end assumed when the detector reports the end of the row without saying
+    /// where (the paper's pipeline, which sees the canopy thin out), m. Default 1.6: where the lowest
+    /// beam of the paper's mount (1.5 m high, 30° down, 0.6 m ahead of `base_link`) meets a 0.5 m
+    /// canopy, the nearest canopy a scan shows. The default pipeline reports the distance itself.
     pub default_row_end_ahead_m: f64,
 }
 
@@ -131,12 +139,13 @@ impl Default for LaneSwitchConfig {
             wheel_y_m: 0.762,
             max_headland_excursion_m: 1.5,
             max_blind_distance_m: 1.0,
+            end_approach_m: 2.5,
             entry_lateral_tolerance_m: 0.25,
             entry_heading_tolerance_rad: 0.15,
             entry_alignment_m: 0.1,
             entry_confirmations: 3,
             max_unconfirmed_entry_m: 1.0,
-            default_row_end_ahead_m: 0.0,
+            default_row_end_ahead_m: 1.6,
         }
     }
 }
@@ -155,6 +164,7 @@ impl LaneSwitchConfig {
         check_range("lane_switch.clearance_margin_m", self.clearance_margin_m, 0.0, 10.0)?;
         check_range("lane_switch.max_headland_excursion_m", self.max_headland_excursion_m, 0.1, 50.0)?;
         check_range("lane_switch.max_blind_distance_m", self.max_blind_distance_m, 0.0, 100.0)?;
+        check_range("lane_switch.end_approach_m", self.end_approach_m, 0.0, 10.0)?;
         check_range(
             "lane_switch.entry_lateral_tolerance_m",
             self.entry_lateral_tolerance_m,
@@ -226,7 +236,7 @@ impl LaneSwitchConfig {
         if self.lanes > 0 {
             self.lanes
         } else {
-            (self.field_lanes.saturating_sub(self.start_lane + 1)) / self.lane_step + 1
+            self.field_lanes.saturating_sub(self.start_lane.saturating_add(1)) / self.lane_step.max(1) + 1
         }
     }
 }
@@ -469,7 +479,7 @@ impl LaneSwitcher {
                 if let Some(end) = self.row_end
                     && along(&end, odom) >= self.cfg.turn_start_m()
                 {
-                    self.lanes_completed += 1;
+                    self.lanes_completed = self.lanes_completed.saturating_add(1);
                     if self.lanes_completed >= self.cfg.lane_count() {
                         self.mode = Mode::Done;
                     } else {
@@ -522,11 +532,9 @@ impl LaneSwitcher {
     fn follow(&mut self, odom: &Pose2, detection: Option<&Detection>, travelled: f64) {
         let mut saw_rows = false;
         if let Some(d) = detection {
-            if d.status == RowStatus::Lost {
-                self.mode = Mode::Stopped { reason: StopReason::RowsLost };
-                return;
+            if d.status != RowStatus::Lost {
+                saw_rows = self.reference.update(d, odom);
             }
-            saw_rows = self.reference.update(d, odom);
             if let Some(ahead) = d.row_end_ahead_m.filter(|a| a.is_finite()) {
                 self.row_end = Some(self.end_from(odom, ahead));
             } else if d.status == RowStatus::EndOfRow && self.row_end.is_none() {
@@ -545,8 +553,14 @@ impl LaneSwitcher {
             self.mode = Mode::ClearingRowEnd;
             return;
         }
-        // Once the detector has seen where the canopy ends, the line is carried to it without rows.
-        self.blind_m = if saw_rows || self.row_end.is_some() { 0.0 } else { self.blind_m + travelled };
+        // Close to a row end the detector has seen, the last plants have left the scan: rows missing or
+        // lost there are expected, and the line is carried to the end. Anywhere else they stop the robot.
+        let end_near = self.row_end.is_some_and(|end| -along(&end, odom) <= self.cfg.end_approach_m);
+        if !end_near && detection.is_some_and(|d| d.status == RowStatus::Lost) {
+            self.mode = Mode::Stopped { reason: StopReason::RowsLost };
+            return;
+        }
+        self.blind_m = if saw_rows || end_near { 0.0 } else { self.blind_m + travelled };
         if self.blind_m > self.cfg.max_blind_distance_m {
             self.mode = Mode::Stopped { reason: StopReason::NoRows };
         }
@@ -582,7 +596,7 @@ impl LaneSwitcher {
         self.turn.extend(start, arc, k);
         self.turn.extend(start, d + self.cfg.max_unconfirmed_entry_m + 10.0, 0.0);
         self.s_hint_m = 0.0;
-        self.turn_index += 1;
+        self.turn_index = self.turn_index.wrapping_add(1);
         self.exit_line = Some(*end);
         self.row_end = None;
     }
@@ -604,16 +618,16 @@ impl LaneSwitcher {
             if lateral.abs() <= self.cfg.entry_lateral_tolerance_m
                 && heading.abs() <= self.cfg.entry_heading_tolerance_rad
             {
-                self.agree += 1;
+                self.agree = self.agree.saturating_add(1);
                 self.disagree = 0;
             } else {
-                self.disagree += 1;
+                self.disagree = self.disagree.saturating_add(1);
                 self.agree = 0;
             }
             let aligned = f.lateral_m.abs() <= self.cfg.entry_alignment_m
                 && f.heading_rad.abs() <= self.cfg.entry_heading_tolerance_rad;
             if self.agree >= self.cfg.entry_confirmations && aligned && self.reference.update(d, odom) {
-                self.lane += self.cfg.lane_step;
+                self.lane = self.lane.saturating_add(self.cfg.lane_step);
                 self.enter_following(odom);
                 return;
             }

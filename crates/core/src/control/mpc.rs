@@ -85,7 +85,8 @@ pub struct MpcConfig {
     pub yaw_accel_max_radps2: f64,
     /// Weight of the quadratic penalty on rates beyond their limits. Default 100.
     pub rate_penalty_weight: f64,
-    /// PANOC tolerance on the fixed-point residual. Default 1e-4.
+    /// PANOC tolerance on the fixed-point residual. Default 1e-3: warm solves converge in 1-10
+    /// iterations, while 1e-4 makes cold solves hit the iteration cap for no visible tracking gain.
     pub tolerance: f64,
     /// Iteration cap per solve (deterministic budget). Default 60.
     pub max_iterations: usize,
@@ -111,7 +112,7 @@ impl Default for MpcConfig {
             accel_max_mps2: 0.8,
             yaw_accel_max_radps2: 2.0,
             rate_penalty_weight: 100.0,
-            tolerance: 1e-4,
+            tolerance: 1e-3,
             max_iterations: 60,
             lbfgs_memory: 8,
         }

@@ -45,6 +45,13 @@ pub struct EkfConfig {
     /// Relative standard deviation of the wheel yaw rate that grows with it (skid-steer slip: the
     /// faster the turn, the more the wheels scrub), dimensionless. Default 0.3.
     pub wheel_yaw_rate_slip: f64,
+    /// Standard deviation of the wheel yaw rate per unit forward speed, rad/s per m/s. Ruts, tyre scrub
+    /// and unequal tyre radii make a moving skid-steer's wheel yaw rate wander slowly (seconds); fused as
+    /// white noise it would drag the gyro bias along and the heading with it. With this term the heading
+    /// comes from the gyro while driving, and the wheels calibrate the gyro bias mainly at rest (start
+    /// at rest for a few seconds). Default 0 (wheel yaw-rate errors taken as white); 0.5 matches the
+    /// simulated skid-steer (`croprow_sim::experiment::detection::ekf_config`).
+    pub wheel_yaw_rate_per_speed: f64,
     /// Standard deviation of a gyro z sample, rad/s. Default 0.005.
     pub gyro_std_radps: f64,
     /// Initial standard deviation of the gyro bias, rad/s. Default 0.02.
@@ -62,6 +69,7 @@ impl Default for EkfConfig {
             wheel_speed_std_mps: 0.02,
             wheel_yaw_rate_std_radps: 0.02,
             wheel_yaw_rate_slip: 0.3,
+            wheel_yaw_rate_per_speed: 0.0,
             gyro_std_radps: 0.005,
             initial_bias_std_radps: 0.02,
             max_gap_s: 0.5,
@@ -78,6 +86,7 @@ impl EkfConfig {
         check_range("ekf.wheel_speed_std_mps", self.wheel_speed_std_mps, 1e-6, 10.0)?;
         check_range("ekf.wheel_yaw_rate_std_radps", self.wheel_yaw_rate_std_radps, 1e-6, 10.0)?;
         check_range("ekf.wheel_yaw_rate_slip", self.wheel_yaw_rate_slip, 0.0, 10.0)?;
+        check_range("ekf.wheel_yaw_rate_per_speed", self.wheel_yaw_rate_per_speed, 0.0, 100.0)?;
         check_range("ekf.gyro_std_radps", self.gyro_std_radps, 1e-6, 10.0)?;
         check_range("ekf.initial_bias_std_radps", self.initial_bias_std_radps, 0.0, 1.0)?;
         check_range("ekf.max_gap_s", self.max_gap_s, 1e-3, 60.0)?;
@@ -124,24 +133,29 @@ impl Ekf {
     /// A filter at the `odom` origin, at rest, with the configured initial bias uncertainty.
     pub fn new(cfg: EkfConfig) -> Result<Self, ConfigError> {
         cfg.validate()?;
+        Ok(Self { p: Self::initial_covariance(&cfg), cfg, x: Vec6::zeros(), stamp_s: None })
+    }
+
+    /// Velocities unknown (1 m/s, 1 rad/s), pose exact (it defines `odom`), bias as configured.
+    fn initial_covariance(cfg: &EkfConfig) -> Mat6 {
         let mut p = Mat6::zeros();
         p[(V, V)] = 1.0;
         p[(W, W)] = 1.0;
         p[(B, B)] = cfg.initial_bias_std_radps.powi(2);
-        Ok(Self { cfg, x: Vec6::zeros(), p, stamp_s: None })
+        p
     }
 
-    /// Restarts at `pose` (in `odom`), at rest, at `stamp_s`.
+    /// Restarts at `pose` (in `odom`), at rest, at `stamp_s`; the bias estimate and its uncertainty
+    /// are kept (the gyro has not changed).
     pub fn reset(&mut self, stamp_s: f64, pose: Pose2) -> Result<(), EkfError> {
         if !stamp_s.is_finite() || !pose.is_finite() {
             return Err(EkfError::NonFinite { what: "reset pose or stamp" });
         }
-        let bias = self.x[B];
-        *self = Self {
-            x: Vec6::from([pose.x, pose.y, wrap_angle(pose.yaw), 0.0, 0.0, bias]),
-            stamp_s: Some(stamp_s),
-            ..Self::new(self.cfg.clone()).map_err(|_| EkfError::NonFinite { what: "config" })?
-        };
+        let (bias, bias_var) = (self.x[B], self.p[(B, B)]);
+        self.x = Vec6::from([pose.x, pose.y, wrap_angle(pose.yaw), 0.0, 0.0, bias]);
+        self.p = Self::initial_covariance(&self.cfg);
+        self.p[(B, B)] = bias_var;
+        self.stamp_s = Some(stamp_s);
         Ok(())
     }
 
@@ -223,11 +237,14 @@ impl Ekf {
     }
 
     /// Fuses a wheel-odometry twist (`v` m/s, `omega` rad/s) with the configured variances; the yaw
-    /// rate's grows with `|omega|` (`ekf.wheel_yaw_rate_slip`), so turns barely disturb the bias.
+    /// rate's grows with `|omega|` (`ekf.wheel_yaw_rate_slip`) and `|v|` (`ekf.wheel_yaw_rate_per_speed`),
+    /// so turns and driving barely disturb the bias.
     pub fn update_wheel(&mut self, stamp_s: f64, v: f64, omega: f64) -> Result<(), EkfError> {
         let var = [
             self.cfg.wheel_speed_std_mps.powi(2),
-            self.cfg.wheel_yaw_rate_std_radps.powi(2) + (self.cfg.wheel_yaw_rate_slip * omega).powi(2),
+            self.cfg.wheel_yaw_rate_std_radps.powi(2)
+                + (self.cfg.wheel_yaw_rate_slip * omega).powi(2)
+                + (self.cfg.wheel_yaw_rate_per_speed * v).powi(2),
         ];
         self.update_wheel_with_variance(stamp_s, v, omega, var)
     }
@@ -359,6 +376,37 @@ mod tests {
         );
     }
 
+    /// Heading error after 5 s at rest then 60 s at 0.8 m/s straight, when the moving wheels report a
+    /// yaw rate 0.004 rad/s off (ruts, unequal tyres) and the gyro has a 0.005 rad/s bias.
+    fn heading_error_with_drifting_wheels(cfg: EkfConfig) -> f64 {
+        let mut ekf = Ekf::new(cfg).unwrap();
+        let mut yaw_truth = 0.0;
+        for i in 0..6500 {
+            let t = i as f64 * 0.01;
+            let moving = t >= 5.0;
+            let (v, w) = if moving { (0.8, 0.05 * (0.3 * t).sin()) } else { (0.0, 0.0) };
+            if i % 2 == 0 {
+                let wheel_w = if moving { w + 0.004 } else { 0.0 };
+                ekf.update_wheel(t, v, wheel_w).unwrap();
+            }
+            ekf.update_imu(t, w + 0.005).unwrap();
+            yaw_truth += w * 0.01;
+        }
+        wrap_angle(ekf.pose().yaw - yaw_truth).abs()
+    }
+
+    #[test]
+    fn speed_scaled_wheel_yaw_noise_keeps_the_gyro_bias_from_drifting_wheels() {
+        let white = heading_error_with_drifting_wheels(EkfConfig::default());
+        let tuned = heading_error_with_drifting_wheels(EkfConfig {
+            wheel_yaw_rate_per_speed: 0.5,
+            ..EkfConfig::default()
+        });
+        eprintln!("heading error after 60 s: white wheels {white:.4} rad, speed-scaled {tuned:.4} rad");
+        // The wheels' 0.004 rad/s over 60 s would turn the heading by 0.24 rad if the bias followed them.
+        assert!(tuned < 0.25 * white && tuned < 0.02, "tuned {tuned:.4} rad vs white {white:.4} rad");
+    }
+
     #[test]
     fn estimates_the_gyro_bias() {
         let (truth, ekf, _, _) = drive(1.0, 1.0, 0.02, 60.0);
@@ -400,6 +448,19 @@ mod tests {
         // The clock moved on: the next sample is accepted again.
         ekf.update_wheel(100.02, 0.5, 0.0).unwrap();
         assert!((ekf.pose().x - pose.x - 0.01).abs() < 1e-3);
+    }
+
+    #[test]
+    fn reset_moves_the_pose_and_keeps_the_bias() {
+        let (_, mut ekf, _, _) = drive(1.0, 1.0, 0.02, 20.0);
+        let bias = ekf.gyro_bias_radps();
+        ekf.reset(30.0, Pose2::new(1.0, 2.0, 0.5)).unwrap();
+        assert_eq!(
+            (ekf.pose(), ekf.twist(), ekf.stamp_s()),
+            (Pose2::new(1.0, 2.0, 0.5), Twist2::ZERO, Some(30.0))
+        );
+        assert_eq!(ekf.gyro_bias_radps(), bias);
+        assert!(ekf.reset(31.0, Pose2::new(f64::NAN, 0.0, 0.0)).is_err());
     }
 
     #[test]

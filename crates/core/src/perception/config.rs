@@ -53,8 +53,8 @@ pub struct DetectorConfig {
     /// Depth bins for K-means (paper mode): width of one bin, m. Default 1 (paper Sec. III-A-2);
     /// the authors' code uses a single 2.4 m bin.
     pub depth_bin_m: f64,
-    /// Depth beyond which canopy points are not clustered (paper mode), m. Default 4 (the range crop);
-    /// the authors' code uses 2.4.
+    /// Depth beyond which canopy points are not clustered (paper mode), m; at most 64 depth bins.
+    /// Default 4 (the range crop); the authors' code uses 2.4.
     pub max_depth_m: f64,
     /// K-means clusters per depth bin before merging (paper mode). Default 10 (the paper's "large n";
     /// the value of the authors' code).
@@ -168,7 +168,13 @@ impl DetectorConfig {
         check_range("detector.min_range_m", self.min_range_m, 0.0, self.range_m - 0.5)?;
         check_range("detector.plane_raise_m", self.plane_raise_m, -1.0, 1.0)?;
         check_range("detector.depth_bin_m", self.depth_bin_m, 0.1, 100.0)?;
-        check_range("detector.max_depth_m", self.max_depth_m, self.depth_bin_m.min(1.0), 100.0)?;
+        // The paper pipeline sorts points into at most 64 depth bins (a fixed buffer).
+        check_range(
+            "detector.max_depth_m",
+            self.max_depth_m,
+            self.depth_bin_m.min(1.0),
+            64.0 * self.depth_bin_m,
+        )?;
         check_count("detector.kmeans_k", self.kmeans_k, 1, 64)?;
         check_count("detector.kmeans_iterations", self.kmeans_iterations, 1, 1000)?;
         check_range("detector.merge_distance_m", self.merge_distance_m, 0.01, 5.0)?;
@@ -220,6 +226,8 @@ mod tests {
         assert!(e.contains("detector.range_m"), "{e}");
         let c = DetectorConfig { kmeans_k: 0, ..DetectorConfig::paper() };
         assert!(c.validate().unwrap_err().to_string().contains("detector.kmeans_k"));
+        let c = DetectorConfig { depth_bin_m: 0.1, max_depth_m: 10.0, ..DetectorConfig::paper() };
+        assert!(c.validate().unwrap_err().to_string().contains("detector.max_depth_m"));
         let c = DetectorConfig { spacing_max_m: 0.2, ..DetectorConfig::default() };
         assert!(c.validate().unwrap_err().to_string().contains("detector.spacing_max_m"));
     }

@@ -31,6 +31,18 @@ const FULL_SUPPORT: f64 = 10.0;
 /// Confidence of a row that has no support of its own and is placed by its neighbours and the spacing.
 const INFERRED_CONFIDENCE: f64 = 0.25;
 
+/// A stage of [`RowDetector::detect`], for the per-stage benchmark (not a stable API).
+#[doc(hidden)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stage {
+    /// Transform, crop, canopy split (both modes).
+    Preprocess,
+    /// Paper: K-means per depth bin into the map. Default: predict, bin per row, store in the map.
+    Cluster,
+    /// Paper: first rows and RANSAC. Default: the joint least-squares correction.
+    Fit,
+}
+
 /// The crop-row detector. Built once from a validated [`DetectorConfig`]; every buffer is allocated in
 /// [`RowDetector::new`] (the point buffers for a full VLP-16 scan, the centroid map for
 /// `map_capacity` centroids), so [`RowDetector::detect`] does not allocate for scans up to that size.
@@ -104,14 +116,36 @@ impl RowDetector {
         }
         self.last = Some((t, odom));
         self.pending_jump = None;
-        let d = match self.config.mode {
+        match self.config.mode {
             DetectorMode::Paper => self.detect_paper(t, &odom, mount),
             DetectorMode::Default => self.detect_default(t, &odom),
-        };
-        if d.left.is_some() || d.right.is_some() {
-            self.last_rows_s = Some(t);
         }
-        d
+    }
+
+    /// Runs one stage alone on the buffers of the previous stage, for the per-stage benchmark (not a
+    /// stable API; no input checks, no state update beyond the map). Returns a count that depends on the
+    /// work done, so that the optimiser cannot drop it.
+    #[doc(hidden)]
+    pub fn run_stage(&mut self, stage: Stage, scan: Scan<'_>, odom: Pose2, mount: &Mount) -> usize {
+        let c = &self.config;
+        match (stage, c.mode) {
+            (Stage::Preprocess, _) => {
+                self.pre.run(scan.points, mount, c, self.plane_rule()) + self.pre.canopy.len()
+            }
+            (Stage::Cluster, DetectorMode::Paper) => {
+                self.paper.cluster_bins(&self.pre.canopy, mount.x_m, &odom, c, &mut self.map);
+                self.map.points().len()
+            }
+            (Stage::Cluster, DetectorMode::Default) => {
+                self.lanes.measure_stage(&self.pre.canopy, &self.pre.cropped, &odom, c, &mut self.map)
+            }
+            (Stage::Fit, DetectorMode::Paper) => {
+                self.paper.fit_stage(&odom, c, &self.map, &mut self.centroids)
+            }
+            (Stage::Fit, DetectorMode::Default) => {
+                self.lanes.correct_stage(&odom, c, &self.map, &mut self.centroids)
+            }
+        }
     }
 
     fn plane_rule(&self) -> PlaneRule {
@@ -127,12 +161,16 @@ impl RowDetector {
         dist > self.config.max_speed_mps * dt + JUMP_SLACK_M || turn > MAX_YAW_RATE_RPS * dt + JUMP_SLACK_RAD
     }
 
-    /// The status when no end of row applies: tracking with rows, otherwise searching until rows that
-    /// were tracked have been missing for `lost_after_s`.
-    fn status_without_end(&self, t: f64, has_rows: bool) -> RowStatus {
+    /// The status when no end of row applies. `rows_out`: rows are reported; `rows_seen`: this scan's
+    /// own evidence supports them. Tracking while reported rows were seen within `lost_after_s`, lost
+    /// once rows that were seen have not been for longer, searching otherwise.
+    fn status_without_end(&mut self, t: f64, rows_out: bool, rows_seen: bool) -> RowStatus {
+        if rows_seen {
+            self.last_rows_s = Some(t);
+        }
         match self.last_rows_s {
-            _ if has_rows => RowStatus::Tracking,
             Some(last) if t - last > self.config.lost_after_s => RowStatus::Lost,
+            Some(_) if rows_out => RowStatus::Tracking,
             _ => RowStatus::Searching,
         }
     }
@@ -155,7 +193,7 @@ impl RowDetector {
         let status = if self.sparse_scans >= self.config.end_scans {
             RowStatus::EndOfRow
         } else {
-            self.status_without_end(t, has_rows)
+            self.status_without_end(t, has_rows, has_rows)
         };
         let spacing = match (rows.left, rows.right) {
             (Some(l), Some(r)) => {
@@ -183,7 +221,7 @@ impl RowDetector {
         );
         let at_end = out.row_end_ahead_m.is_some_and(|d| d <= self.config.end_trigger_m);
         let Some(lane) = out.lane else {
-            let status = if at_end { RowStatus::EndOfRow } else { self.status_without_end(t, false) };
+            let status = if at_end { RowStatus::EndOfRow } else { self.status_without_end(t, false, false) };
             return Detection { row_end_ahead_m: out.row_end_ahead_m, ..Detection::empty(t, status) };
         };
         let row = |k: usize, j: i32| -> RowEstimate {
@@ -193,10 +231,12 @@ impl RowDetector {
             lane.row(j, far, if out.updated { confidence } else { INFERRED_CONFIDENCE })
         };
         let (left, right) = (row(0, 0), row(1, -1));
-        let status = if at_end { RowStatus::EndOfRow } else { self.status_without_end(t, true) };
+        let status = if at_end { RowStatus::EndOfRow } else { self.status_without_end(t, true, out.updated) };
         let all_finite = left.line.iter().chain(&right.line).all(|v| v.is_finite());
-        if !all_finite {
-            return Detection::empty(t, self.status_without_end(t, false));
+        if status == RowStatus::Lost || !all_finite {
+            // Lost means "do not guess": no rows; a non-finite row must never reach the controller.
+            let status = if all_finite { status } else { self.status_without_end(t, false, false) };
+            return Detection { row_end_ahead_m: out.row_end_ahead_m, ..Detection::empty(t, status) };
         }
         Detection {
             left: Some(left),

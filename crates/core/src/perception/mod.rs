@@ -2,7 +2,24 @@
 //! robot's left and right, as lines in `base_link` (REP-103).
 //!
 //! The types here are the contract between perception and everything downstream (control, recordings,
-//! the ROS node, evaluation). The detector itself lives in the sub-modules.
+//! the ROS node, evaluation). The detector itself lives in the sub-modules, in the order of the flow:
+//!
+//! ```text
+//! Scan (sensor) ─► preprocess: base_link, FOV/range crop, canopy above a virtual ground plane
+//!               ─► paper:   K-means per depth bin ─► centroid map (odom) ─► RANSAC, first row left/right
+//!               ─► lanes:   rows binned against the predicted lane ─► centroid map (odom)
+//!                           ─► joint least squares of all rows (offset, heading, curvature, spacing) ─► row end
+//!               ─► Detection (base_link) + RowStatus
+//! ```
+//!
+//! ```
+//! use croprow_core::{DetectorConfig, Mount, Point3, Pose2, RowDetector, Scan};
+//! let mut detector = RowDetector::new(DetectorConfig::default())?;
+//! let points = vec![Point3::new(2.0, 0.3, -1.0); 10];
+//! let d = detector.detect(Scan { stamp_s: 0.0, points: &points }, Pose2::default(), &Mount::default());
+//! println!("{}: {:?} {:?}", d.status.as_str(), d.left, d.right);
+//! # Ok::<(), croprow_core::ConfigError>(())
+//! ```
 
 use serde::{Deserialize, Serialize};
 
@@ -16,6 +33,8 @@ mod rng;
 
 pub use config::{DetectorConfig, DetectorMode};
 pub use detector::RowDetector;
+#[doc(hidden)]
+pub use detector::Stage;
 
 use crate::geometry::Point3;
 

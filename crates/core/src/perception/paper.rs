@@ -89,8 +89,24 @@ impl Paper {
         }
     }
 
-    /// Counting-sorts the canopy by depth bin, then runs K-means and the lateral merge in each bin.
-    fn cluster_bins(
+    /// The row selection and RANSAC stage alone, for the per-stage benchmark; returns the rows found.
+    pub(crate) fn fit_stage(
+        &mut self,
+        odom: &Pose2,
+        config: &DetectorConfig,
+        map: &CentroidMap,
+        centroids: &mut Vec<[f64; 2]>,
+    ) -> usize {
+        self.collect_window(odom, config, map, centroids);
+        let (left, right) = self.first_rows(config);
+        let l = left.and_then(|g| self.fit_row(g, config)).is_some();
+        let r = right.and_then(|g| self.fit_row(g, config)).is_some();
+        usize::from(l) + usize::from(r)
+    }
+
+    /// Counting-sorts the canopy by depth bin, then runs K-means and the lateral merge in each bin
+    /// (also the K-means stage of the per-stage benchmark).
+    pub(crate) fn cluster_bins(
         &mut self,
         canopy: &[[f32; 3]],
         sensor_x_m: f64,
@@ -209,7 +225,7 @@ impl Paper {
         let mut acc: Option<Cluster> = None;
         let flush = |c: Cluster, map: &mut CentroidMap| {
             if c.n >= MIN_CLUSTER_POINTS {
-                map.push(odom, c.sx / c.n as f64, c.sy / c.n as f64, c.n as f64);
+                map.push(odom, c.sx / c.n as f64, c.sy / c.n as f64, c.n as f64, 0.0);
             }
         };
         for c in &self.clusters {

@@ -4,7 +4,7 @@
 #![allow(dead_code)]
 
 use croprow_core::geometry::wrap_angle;
-use croprow_core::{Detection, DetectorConfig, Mount, Point3, Pose2, RowDetector, RowStatus, Scan};
+use croprow_core::{Detection, DetectorConfig, Mount, Point3, Pose2, RowDetector, Scan};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -169,6 +169,9 @@ pub struct Lidar {
     pub azimuth_step_deg: f64,
     pub range_sigma_m: f64,
     pub max_range_m: f64,
+    /// Organised cloud: a NaN point for every ray without a return (16 × 1800 points per scan), as
+    /// Velodyne drivers publish it with `organize_cloud`.
+    pub organized: bool,
     rng: ChaCha8Rng,
 }
 
@@ -178,12 +181,13 @@ impl Lidar {
             azimuth_step_deg: 0.2,
             range_sigma_m: 0.03,
             max_range_m: 8.0,
+            organized: false,
             rng: ChaCha8Rng::seed_from_u64(seed),
         }
     }
 
     /// One revolution from the robot at `pose` (world = odom), in the sensor frame. Rays that miss give
-    /// no point (a Velodyne drops them).
+    /// no point, or a NaN point in an organised cloud.
     pub fn scan(&mut self, field: &Field, pose: &Pose2, mount: &Mount) -> Vec<Point3> {
         let robot = Isometry3::from_parts(
             Translation3::new(pose.x, pose.y, 0.0),
@@ -204,6 +208,8 @@ impl Lidar {
                 if let Some(r) = cast(field, &origin, &d, top, self.max_range_m) {
                     let r = r + noise.sample(&mut self.rng);
                     out.push(Point3::new((d_s.x * r) as f32, (d_s.y * r) as f32, (d_s.z * r) as f32));
+                } else if self.organized {
+                    out.push(Point3::new(f32::NAN, f32::NAN, f32::NAN));
                 }
             }
         }
@@ -284,13 +290,46 @@ impl Errors {
 /// Drives `poses` over `field` with `config`, 10 Hz, perfect odometry; scores the first left row
 /// (k = 0 at the lane centre) and the first right row (k = -1) after `skip` scans.
 pub fn run(field: &Field, config: DetectorConfig, poses: &[Pose2], skip: usize, seed: u64) -> Errors {
+    run_with_odometry(field, config, poses, poses, skip, seed)
+}
+
+/// Odometry that drifts: each step's true motion scaled by `1 + scale_err` and its heading change
+/// biased by `yaw_drift_rad_per_m` per metre travelled, integrated from the first true pose.
+pub fn drifting_odometry(poses: &[Pose2], scale_err: f64, yaw_drift_rad_per_m: f64) -> Vec<Pose2> {
+    let mut odom = Vec::with_capacity(poses.len());
+    let mut cur = poses.first().copied().unwrap_or_default();
+    for (i, p) in poses.iter().enumerate() {
+        if let Some(prev) = i.checked_sub(1).and_then(|k| poses.get(k)) {
+            let rel = prev.relative(p);
+            let dist = rel.x.hypot(rel.y);
+            let step = Pose2::new(
+                rel.x * (1.0 + scale_err),
+                rel.y * (1.0 + scale_err),
+                rel.yaw + yaw_drift_rad_per_m * dist,
+            );
+            cur = cur.compose(&step);
+        }
+        odom.push(cur);
+    }
+    odom
+}
+
+/// As [`run`], with the detector fed `odometry` instead of the true poses (the truth still scores it).
+pub fn run_with_odometry(
+    field: &Field,
+    config: DetectorConfig,
+    poses: &[Pose2],
+    odometry: &[Pose2],
+    skip: usize,
+    seed: u64,
+) -> Errors {
     let mount = Mount::default();
     let mut lidar = Lidar::vlp16(seed);
     let mut det = RowDetector::new(config).expect("valid config");
     let mut e = Errors::default();
-    for (i, pose) in poses.iter().enumerate() {
+    for (i, (pose, odom)) in poses.iter().zip(odometry).enumerate() {
         let pts = lidar.scan(field, pose, &mount);
-        let d = det.detect(Scan { stamp_s: i as f64 * 0.1, points: &pts }, *pose, &mount);
+        let d = det.detect(Scan { stamp_s: i as f64 * 0.1, points: &pts }, *odom, &mount);
         e.detections.push(d);
         if i < skip {
             continue;
@@ -305,7 +344,6 @@ pub fn run(field: &Field, config: DetectorConfig, poses: &[Pose2], skip: usize, 
                 _ => e.misses += 1,
             }
         }
-        let _ = RowStatus::Tracking;
     }
     e
 }

@@ -1,0 +1,45 @@
+//! Ray-casting cost of one full VLP-16 revolution (28,800 rays) over full-size (200 m x 16 rows) fields.
+//! ns/ray = time per revolution / 28,800.
+//!
+//! `cargo bench -p croprow-sim --bench lidar -- --warm-up-time 1 --measurement-time 3`
+//!
+//! Measured 2026-11-22 on the shared 2-core AMD EPYC build machine (load average 3-5, so wall times
+//! are noisy: compare instruction counts). Before -> after the per-cell height ranges (commit 76b93fa),
+//! median wall time per revolution, both binaries run back to back:
+//! young corn 4.00 -> 3.66 ms, grown corn 8.26 -> 5.01 ms, young soybean 4.34 -> 3.85 ms,
+//! grown soybean 8.28 -> 5.77 ms, curved corn 4.00 -> 4.67 ms (CPU time of the same scans measured
+//! alone: 4.2 -> 3.9 ms, i.e. unchanged within the noise). Instructions per revolution (callgrind on
+//! `examples/raycast_cost.rs`, `Lidar::cast_columns` only): young corn 32.4M -> 22.5M, grown corn 55.7M -> 30.4M, young soybean
+//! 39.0M -> 24.8M, grown soybean 68.2M -> 31.7M, curved corn 33.3M -> 23.6M. The scans are bit for bit
+//! the same as before. The 1 ms target is not met: a downward ray (13k of the 28.8k) still costs
+//! ~2,200 instructions (grown corn: 16 cells, 30 primitive references, 10 primitive tests); getting
+//! under 1 ms needs SIMD primitive tests over structure-of-arrays cells, not more culling.
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use croprow_core::Pose2;
+use croprow_sim::{BodyPose, Field, Lidar, ScanBuffer, Scenario};
+
+fn revolution(c: &mut Criterion) {
+    let mut group = c.benchmark_group("lidar_revolution");
+    for name in ["young-corn", "grown-corn", "young-soybean", "grown-soybean", "curved-corn"] {
+        let s = Scenario::builtin(name).expect("built-in scenario");
+        let field = Field::generate(&s.field, s.seed).expect("valid field");
+        let mut lidar = Lidar::new(&s.lidar, 1).expect("valid lidar");
+        let mut scan = ScanBuffer::default();
+        let lane = s.lane();
+        // Step along the lane between iterations so caches see a moving robot, as in a run.
+        let mut x = 20.0;
+        group.bench_function(name, |b| {
+            b.iter(|| {
+                x = if x > 180.0 { 20.0 } else { x + 0.08 };
+                let pose = Pose2::new(x, field.lane_y(lane, x), field.row_heading(x));
+                lidar.scan(&field, &BodyPose::planar(pose), &mut scan);
+                scan.points.len()
+            })
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, revolution);
+criterion_main!(benches);
