@@ -30,6 +30,9 @@ enum Command {
     Rows(cmd::rows::Args),
     /// Quick benchmark of the detector, the closed-loop simulation and the MPC (`--json` for one object).
     Bench(cmd::bench::Args),
+    /// Run the live ROS 2 node: point cloud + odometry in, /cmd_vel, rows, path and status out.
+    #[cfg(feature = "ros2")]
+    Node(cmd::node::Args),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -43,5 +46,7 @@ fn main() -> anyhow::Result<()> {
         Some(Command::Simulate(a)) => cmd::simulate::run(a),
         Some(Command::Evaluate(a)) => cmd::evaluate::run(a),
         Some(Command::Bench(a)) => cmd::bench::run(a),
+        #[cfg(feature = "ros2")]
+        Some(Command::Node(a)) => cmd::node::run(a),
     }
 }
