@@ -37,6 +37,7 @@ pub mod experiment;
 pub mod field;
 pub mod lidar;
 pub mod metrics;
+mod raster;
 pub mod robot;
 pub mod scenario;
 mod scene;
