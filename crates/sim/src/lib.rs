@@ -37,7 +37,6 @@ pub mod experiment;
 pub mod field;
 pub mod lidar;
 pub mod metrics;
-mod raster;
 pub mod robot;
 pub mod scenario;
 mod scene;

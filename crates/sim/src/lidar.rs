@@ -27,7 +27,6 @@ use rand_distr::{Distribution, StandardNormal};
 use serde::{Deserialize, Serialize};
 
 use crate::field::Field;
-use crate::raster::{Layout, Raster, SensorPose};
 use crate::scene::Class;
 
 /// Parameters of the simulated LiDAR. Defaults: a Velodyne VLP-16 on the paper's mount.
@@ -146,14 +145,8 @@ pub struct Lidar {
     /// Unit beam directions in the sensor frame, column-major (`column * beams + beam`).
     dirs: Vec<[f32; 3]>,
     columns: usize,
-    /// Per beam, sine and cosine of its elevation (sensor frame).
-    sin_el: Vec<f32>,
-    cos_el: Vec<f32>,
     mount: Isometry3<f64>,
     rng: ChaCha8Rng,
-    /// The rasteriser's buffers and the per-ray first hits of the current block, reused across scans.
-    raster: Raster,
-    hits: Vec<Option<(f32, Class)>>,
 }
 
 impl Lidar {
@@ -162,23 +155,19 @@ impl Lidar {
         config.validate()?;
         let columns = (360.0 / config.azimuth_step_deg).round() as usize;
         let beams = config.beams as usize;
-        let elevations: Vec<f64> = (0..beams)
-            .map(|b| {
-                if beams == 1 {
+        let mut dirs = Vec::with_capacity(columns * beams);
+        for c in 0..columns {
+            // Clockwise from behind: azimuth (CCW from +x) goes 180°, 179.8°, ...
+            let az = (180.0 - c as f64 * config.azimuth_step_deg).to_radians();
+            for b in 0..beams {
+                let el = if beams == 1 {
                     config.elevation_min_deg
                 } else {
                     config.elevation_min_deg
                         + (config.elevation_max_deg - config.elevation_min_deg) * b as f64
                             / (beams - 1) as f64
                 }
-                .to_radians()
-            })
-            .collect();
-        let mut dirs = Vec::with_capacity(columns * beams);
-        for c in 0..columns {
-            // Clockwise from behind: azimuth (CCW from +x) goes 180°, 179.8°, ...
-            let az = (180.0 - c as f64 * config.azimuth_step_deg).to_radians();
-            for el in &elevations {
+                .to_radians();
                 dirs.push([(el.cos() * az.cos()) as f32, (el.cos() * az.sin()) as f32, el.sin() as f32]);
             }
         }
@@ -186,12 +175,8 @@ impl Lidar {
             config: config.clone(),
             dirs,
             columns,
-            sin_el: elevations.iter().map(|e| e.sin() as f32).collect(),
-            cos_el: elevations.iter().map(|e| e.cos() as f32).collect(),
             mount: config.mount.isometry(),
             rng: ChaCha8Rng::seed_from_u64(seed),
-            raster: Raster::default(),
-            hits: Vec::new(),
         })
     }
 
@@ -239,25 +224,21 @@ impl Lidar {
             [m[(2, 0)] as f32, m[(2, 1)] as f32, m[(2, 2)] as f32],
         ];
         let t = sensor.translation.vector;
-        let pose = SensorPose { origin: [t.x as f32, t.y as f32, t.z as f32], rot };
+        let origin = [t.x as f32, t.y as f32, t.z as f32];
         let beams = self.config.beams as usize;
         let (min_r, max_r) = (self.config.min_range_m as f32, self.config.max_range_m as f32);
         let sigma = self.config.range_noise_m as f32;
         let dropout = self.config.dropout_probability;
+        let scene = field.scene();
         let last = last.min(self.columns);
-        let first = first.min(last);
-        let layout = Layout {
-            dirs: &self.dirs,
-            beams,
-            columns: self.columns,
-            step_rad: self.config.azimuth_step_deg.to_radians() as f32,
-            sin_el: &self.sin_el,
-            cos_el: &self.cos_el,
-        };
-        self.raster.cast(field.scene(), &layout, &pose, first, last, max_r, &mut self.hits);
         let rays = self.dirs.get(first * beams..last * beams).unwrap_or(&[]);
-        for (ds, hit) in rays.iter().zip(&self.hits) {
-            let Some((range, class)) = *hit else { continue };
+        for ds in rays {
+            let d = [
+                rot[0][0] * ds[0] + rot[0][1] * ds[1] + rot[0][2] * ds[2],
+                rot[1][0] * ds[0] + rot[1][1] * ds[1] + rot[1][2] * ds[2],
+                rot[2][0] * ds[0] + rot[2][1] * ds[1] + rot[2][2] * ds[2],
+            ];
+            let Some((range, class)) = scene.cast(origin, d, max_r) else { continue };
             if range < min_r {
                 continue;
             }
@@ -335,85 +316,6 @@ mod tests {
         let ratio = b.points.len() as f64 / a.points.len() as f64;
         // Binomial with n ≈ 14k: ±2 % is over 4σ.
         assert!((ratio - 0.5).abs() < 0.02, "{ratio}");
-    }
-
-    /// Casts columns `first..last` with the rasteriser and with the grid marcher (the reference) and
-    /// checks that every ray gets the same first hit: within 1 mm (f32 rounding of two different
-    /// intersection orders), same class, same rays hit. Returns the number of crop hits.
-    fn compare_with_marcher(
-        lidar: &mut Lidar,
-        f: &Field,
-        body: &BodyPose,
-        first: usize,
-        last: usize,
-    ) -> usize {
-        let mut scan = ScanBuffer::default();
-        lidar.cast_columns(f, body, first, last, &mut scan);
-        let sensor = body.isometry() * lidar.mount;
-        let m = sensor.rotation.to_rotation_matrix().into_inner().cast::<f32>();
-        let t = sensor.translation.vector.cast::<f32>();
-        let pose = SensorPose {
-            origin: [t.x, t.y, t.z],
-            rot: [
-                [m[(0, 0)], m[(0, 1)], m[(0, 2)]],
-                [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
-                [m[(2, 0)], m[(2, 1)], m[(2, 2)]],
-            ],
-        };
-        let beams = lidar.config.beams as usize;
-        let rays = &lidar.dirs[first * beams..last * beams];
-        assert_eq!(lidar.hits.len(), rays.len());
-        let mut crop = 0;
-        for (k, (ds, fast)) in rays.iter().zip(&lidar.hits).enumerate() {
-            let reference = f.scene().cast(pose.origin, pose.to_field(*ds), lidar.config.max_range_m as f32);
-            match (fast, reference) {
-                (None, None) => {}
-                (Some((tf, cf)), Some((tr, cr))) => {
-                    assert!(
-                        (tf - tr).abs() < 1e-3 && *cf == cr,
-                        "ray {k}: raster {tf} {cf:?}, marcher {tr} {cr:?}"
-                    );
-                    crop += usize::from(cr == Class::Crop);
-                }
-                other => panic!("ray {k}: raster vs marcher {other:?}"),
-            }
-        }
-        crop
-    }
-
-    #[test]
-    fn raster_matches_the_marcher_over_full_revolutions() {
-        for (crop, stage) in [(Crop::Corn, Stage::Grown), (Crop::Soybean, Stage::Young)] {
-            let f = field(crop, stage);
-            let mut lidar = Lidar::new(&LidarConfig::default(), 1).unwrap();
-            for (x, yaw) in [(5.0, 0.0), (11.3, 0.2), (17.0, -2.9)] {
-                let mut body = lane_pose(&f, x);
-                body.pose.yaw = yaw;
-                let columns = lidar.columns();
-                let crop_hits = compare_with_marcher(&mut lidar, &f, &body, 0, columns);
-                // The revolution must see plants, not only soil.
-                assert!(crop_hits > 1000, "{crop_hits} crop hits");
-            }
-        }
-    }
-
-    #[test]
-    fn raster_matches_the_marcher_on_blocks_of_columns_and_tilted_bodies() {
-        // The motion-skewed sweep casts blocks of columns, each from its own pose; on relief the body
-        // rolls and pitches.
-        let f = field(Crop::Corn, Stage::Grown);
-        let mut lidar = Lidar::new(&LidarConfig::default(), 1).unwrap();
-        let mut body = lane_pose(&f, 8.0);
-        body.roll_rad = 0.05;
-        body.pitch_rad = -0.04;
-        body.z_m = 0.03;
-        for first in (0..lidar.columns()).step_by(180) {
-            body.pose.x += 0.01;
-            compare_with_marcher(&mut lidar, &f, &body, first, first + 180);
-        }
-        // A block wrapping nothing and an empty block.
-        compare_with_marcher(&mut lidar, &f, &body, 1795, 1800);
-        compare_with_marcher(&mut lidar, &f, &body, 7, 7);
     }
 
     #[test]

@@ -111,29 +111,9 @@ impl Prim {
         }
     }
 
-    /// A sphere `[cx, cy, cz, r]` (field frame, m) holding the whole primitive.
-    fn bounding_sphere(&self) -> [f32; 4] {
-        match self.shape {
-            Shape::Patch { o, ua, wa, .. } => {
-                let (u, w) = (undual(ua), undual(wa));
-                [o[0], o[1], o[2], (dot32(u, u) + dot32(w, w)).sqrt()]
-            }
-            Shape::Cylinder { cx, cy, r2, z0, z1 } => {
-                let h = 0.5 * (z1 - z0);
-                [cx, cy, 0.5 * (z0 + z1), (r2 + h * h).sqrt()]
-            }
-            Shape::Spheroid { c, inv_r, inv_rz } => [c[0], c[1], c[2], (1.0 / inv_r).max(1.0 / inv_rz)],
-        }
-    }
-
-    /// The primitive's class.
-    pub fn class(&self) -> Class {
-        self.class
-    }
-
     /// Distance along the unit ray `o + t·d` to the primitive, if hit with `t_min < t < t_best`.
     #[inline]
-    pub fn intersect(&self, o: [f32; 3], d: [f32; 3], t_min: f32, t_best: f32) -> Option<f32> {
+    fn intersect(&self, o: [f32; 3], d: [f32; 3], t_min: f32, t_best: f32) -> Option<f32> {
         match self.shape {
             Shape::Patch { o: po, n, ua, wa, ellipse } => {
                 let denom = dot32(n, d);
@@ -273,8 +253,6 @@ struct CellInfo {
 #[derive(Debug, Clone)]
 pub(crate) struct Scene {
     prims: Vec<Prim>,
-    /// Per primitive, a bounding sphere `[cx, cy, cz, r]` (field frame, m): the rasteriser's footprint.
-    spheres: Vec<[f32; 4]>,
     relief: Relief,
     /// Upper bound of the relief's slope |∇h| (numerical, with margin), for sphere tracing.
     relief_slope: f64,
@@ -391,10 +369,8 @@ impl Scene {
             .map(|c| CellInfo { ground_z: ground_z[c], start: start[c], end: start[c + 1] })
             .collect();
         let relief_slope = slope_bound(&relief, x_min, x_max, y_min, y_max, cell_m);
-        let spheres = prims.iter().map(Prim::bounding_sphere).collect();
         Self {
             prims,
-            spheres,
             relief,
             relief_slope,
             x0,
@@ -414,45 +390,6 @@ impl Scene {
     /// Number of primitives.
     pub fn primitive_count(&self) -> usize {
         self.prims.len()
-    }
-
-    /// Primitive `k` and its bounding sphere `[cx, cy, cz, r]`.
-    #[inline]
-    pub fn prim(&self, k: u32) -> Option<(&Prim, [f32; 4])> {
-        Some((self.prims.get(k as usize)?, *self.spheres.get(k as usize)?))
-    }
-
-    /// Whether the ground is the plane `z = 0`.
-    pub fn is_flat(&self) -> bool {
-        self.relief.is_flat()
-    }
-
-    /// Highest point of the scene, m (field frame).
-    pub fn top_z(&self) -> f32 {
-        self.top_z
-    }
-
-    /// Calls `visit` with the index of every primitive listed in a cell that overlaps the rectangle
-    /// `[xa, xb] × [ya, yb]` (field frame, m), skipping cells whose height bound lies under `z_floor`.
-    /// A primitive spanning several cells is visited once per cell.
-    pub fn visit_cells(&self, xa: f32, xb: f32, ya: f32, yb: f32, mut visit: impl FnMut(u32)) {
-        let cell =
-            |p: f32, origin: f32, n: i32| (((p - origin) * self.inv_cell).floor() as i32).clamp(0, n - 1);
-        let (i0, i1) = (cell(xa, self.x0, self.nx), cell(xb, self.x0, self.nx));
-        let (j0, j1) = (cell(ya, self.y0, self.ny), cell(yb, self.y0, self.ny));
-        let gx1 = self.x0 + self.nx as f32 * self.cell_m;
-        let gy1 = self.y0 + self.ny as f32 * self.cell_m;
-        if xb < self.x0 || xa > gx1 || yb < self.y0 || ya > gy1 {
-            return;
-        }
-        for j in j0..=j1 {
-            let row = (j * self.nx) as usize;
-            for info in self.cells.get(row + i0 as usize..=row + i1 as usize).unwrap_or(&[]) {
-                for r in self.refs.get(info.start as usize..info.end as usize).unwrap_or(&[]) {
-                    visit(r.prim);
-                }
-            }
-        }
     }
 
     /// Casts the unit ray `o + t·d` (field frame) and returns the first hit with `t ≤ t_max`.
