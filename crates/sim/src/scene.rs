@@ -3,7 +3,8 @@
 //!
 //! Speed comes from culling, so that a ray tests few primitives:
 //! - rays start where they first dip below the tallest thing in the field (rays going up never enter
-//!   the grid), and cells whose height bound lies under the ray are skipped without touching a primitive;
+//!   the grid), then cross blocks of 4 × 4 cells while they pass over the blocks' height bounds, and
+//!   cells whose height bound lies under the ray are skipped without touching a primitive;
 //! - each cell lists a primitive with the height range of the part of it that lies over that cell (a
 //!   tilted leaf spans 20 cm of height but a few cm over one 10 cm cell), sorted from the highest top
 //!   down, so a ray coming down scans only the primitives reaching above it and tests only those whose
