@@ -67,7 +67,8 @@ pub fn top_view(path: &Path, view: &TopView<'_>) -> Result<()> {
     chart.configure_mesh().x_desc("x (m)").y_desc("y (m)").label_style(("sans-serif", 16)).draw()?;
     let crop = RGBColor(60, 160, 60);
     for (i, row) in view.rows.iter().enumerate() {
-        let series = chart.draw_series(LineSeries::new(row.iter().map(|p| (p[0], p[1])), crop.stroke_width(2)))?;
+        let series =
+            chart.draw_series(LineSeries::new(row.iter().map(|p| (p[0], p[1])), crop.stroke_width(2)))?;
         if i == 0 {
             series.label("true rows").legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], crop));
         }
@@ -75,9 +76,11 @@ pub fn top_view(path: &Path, view: &TopView<'_>) -> Result<()> {
     let detected = RGBColor(30, 90, 220);
     if !view.detected.is_empty() {
         chart
-            .draw_series(view.detected.iter().map(|s| {
-                PathElement::new([(s[0], s[1]), (s[2], s[3])], detected.mix(0.35).stroke_width(1))
-            }))?
+            .draw_series(
+                view.detected.iter().map(|s| {
+                    PathElement::new([(s[0], s[1]), (s[2], s[3])], detected.mix(0.35).stroke_width(1))
+                }),
+            )?
             .label("detected rows")
             .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], detected));
     }
@@ -143,7 +146,11 @@ pub fn errors_vs_distance(path: &Path, s: &ErrorSeries<'_>) -> Result<()> {
             .label_style(("sans-serif", 16))
             .draw()?;
         chart.draw_series(LineSeries::new(
-            s.distance_m.iter().zip(values).filter(|(d, v)| d.is_finite() && v.is_finite()).map(|(d, v)| (*d, *v)),
+            s.distance_m
+                .iter()
+                .zip(values)
+                .filter(|(d, v)| d.is_finite() && v.is_finite())
+                .map(|(d, v)| (*d, *v)),
             color.stroke_width(2),
         ))?;
         chart.draw_series(LineSeries::new([(0.0, 0.0), (d_max, 0.0)], BLACK.mix(0.4)))?;
@@ -171,11 +178,18 @@ mod tests {
         let lat: Vec<f64> = d.iter().map(|x| 30.0 * (-x).exp()).collect();
         let head: Vec<f64> = d.iter().map(|x| 8.0 * (-x).exp()).collect();
         let err = dir.join("err.png");
-        errors_vs_distance(&err, &ErrorSeries { title: "t", distance_m: &d, lateral_cm: &lat, heading_deg: &head })
-            .unwrap();
+        errors_vs_distance(
+            &err,
+            &ErrorSeries { title: "t", distance_m: &d, lateral_cm: &lat, heading_deg: &head },
+        )
+        .unwrap();
         for p in [top, err] {
             let bytes = std::fs::read(&p).unwrap();
-            assert!(bytes.len() > 5_000 && bytes.starts_with(b"\x89PNG"), "{} is not a real PNG", p.display());
+            assert!(
+                bytes.len() > 5_000 && bytes.starts_with(b"\x89PNG"),
+                "{} is not a real PNG",
+                p.display()
+            );
         }
         if std::env::var_os("CROPROW_KEEP_PLOTS").is_none() {
             std::fs::remove_dir_all(&dir).ok();

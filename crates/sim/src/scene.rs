@@ -3,7 +3,8 @@
 //!
 //! Speed comes from culling, so that a ray tests few primitives:
 //! - rays start where they first dip below the tallest thing in the field (rays going up never enter
-//!   the grid), and cells whose height bound lies under the ray are skipped without touching a primitive;
+//!   the grid), then cross blocks of 4 × 4 cells while they pass over the blocks' height bounds, and
+//!   cells whose height bound lies under the ray are skipped without touching a primitive;
 //! - each cell lists a primitive with the height range of the part of it that lies over that cell (a
 //!   tilted leaf spans 20 cm of height but a few cm over one 10 cm cell), sorted from the highest top
 //!   down, so a ray coming down scans only the primitives reaching above it and tests only those whose
@@ -173,6 +174,9 @@ impl Prim {
     }
 }
 
+/// Cells per side of a block of the coarse height grid.
+const BLOCK: i32 = 4;
+
 /// Slack of the per-cell hit window along the ray, m: covers the f32 rounding of the DDA's cell
 /// boundaries (well under a millimetre over 100 m of ray).
 const WINDOW_SLACK_M: f32 = 2e-3;
@@ -229,6 +233,19 @@ impl Footprint {
     }
 }
 
+/// A 2-D DDA's state: current square, step directions, ray distance to the next x and y edges and
+/// between edges.
+struct Dda {
+    i: i32,
+    j: i32,
+    step_i: i32,
+    step_j: i32,
+    t_next_x: f32,
+    t_next_y: f32,
+    dt_x: f32,
+    dt_y: f32,
+}
+
 /// A primitive listed in a cell, with its height range so that a ray passing above or below it within
 /// the cell skips it without loading the primitive. Grazing rays (a VLP-16's side beams drop a few
 /// centimetres per metre) cross many cells but meet few primitives at their height.
@@ -268,6 +285,12 @@ pub(crate) struct Scene {
     /// the rest of the cell so that the march over the canopy reads 4 bytes a cell (the array of a
     /// 200 m field fits in a 2 MB L2 cache; with the rest it would not).
     heights: Vec<f32>,
+    /// Per block of `BLOCK` × `BLOCK` cells, row-major (`bj * bnx + bi`): the highest of its cells'
+    /// `heights`. A ray coming down over the canopy crosses a few blocks instead of a dozen cells
+    /// before it reaches anything.
+    block_heights: Vec<f32>,
+    bnx: i32,
+    bny: i32,
     /// Per cell: the ground bound and the primitive references.
     cells: Vec<CellInfo>,
     /// CSR: primitives of cell `c` are `refs[cells[c].start..cells[c].end]`.
@@ -369,6 +392,16 @@ impl Scene {
             .map(|c| CellInfo { ground_z: ground_z[c], start: start[c], end: start[c + 1] })
             .collect();
         let relief_slope = slope_bound(&relief, x_min, x_max, y_min, y_max, cell_m);
+        let (bnx, bny) = ((nx + BLOCK - 1) / BLOCK, (ny + BLOCK - 1) / BLOCK);
+        let mut block_heights = vec![f32::MIN; (bnx as usize) * (bny as usize)];
+        for j in 0..ny {
+            for i in 0..nx {
+                let b = ((j / BLOCK) * bnx + i / BLOCK) as usize;
+                if let (Some(h), Some(bh)) = (max_z.get((j * nx + i) as usize), block_heights.get_mut(b)) {
+                    *bh = bh.max(*h);
+                }
+            }
+        }
         Self {
             prims,
             relief,
@@ -380,6 +413,9 @@ impl Scene {
             nx,
             ny,
             heights: max_z,
+            block_heights,
+            bnx,
+            bny,
             cells,
             refs,
             top_z,
@@ -423,6 +459,9 @@ impl Scene {
                 g_hi = g_hi.min(a.max(b));
             }
         }
+        if g_lo < g_hi {
+            g_lo = self.skip_blocks(o, d, g_lo, g_hi);
+        }
         if g_lo < g_hi
             && let Some(hit) = self.traverse(o, d, g_lo, g_hi)
         {
@@ -432,27 +471,76 @@ impl Scene {
         self.ground_outside(o, d, t_lo, t_hi).map(|t| (t, Class::Ground))
     }
 
-    /// 2-D DDA over the cells the ray crosses between `t0` and `t1` (both inside the grid).
-    fn traverse(&self, o: [f32; 3], d: [f32; 3], t0: f32, t1: f32) -> Option<(f32, Class)> {
-        let (nx, ny) = (self.nx, self.ny);
-        let (heights, cells) = (self.heights.as_slice(), self.cells.as_slice());
-        let (refs, prims) = (self.refs.as_slice(), self.prims.as_slice());
+    /// The start of a 2-D DDA at `t0` over a grid of `size` squares (`nx` × `ny`, from the grid origin).
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn dda(&self, o: [f32; 3], d: [f32; 3], t0: f32, size: f32, inv_size: f32, nx: i32, ny: i32) -> Dda {
         let eps = 1e-4 * self.cell_m;
-        // `as i32` saturates and maps NaN to 0; the clamp keeps the start cell inside the grid.
-        let cell_of = |p: f32, origin: f32, n: i32| (((p - origin) * self.inv_cell) as i32).clamp(0, n - 1);
-        let mut i = cell_of(o[0] + (t0 + eps) * d[0], self.x0, nx);
-        let mut j = cell_of(o[1] + (t0 + eps) * d[1], self.y0, ny);
+        // `as i32` saturates and maps NaN to 0; the clamp keeps the start square inside the grid.
+        let square_of = |p: f32, origin: f32, n: i32| (((p - origin) * inv_size) as i32).clamp(0, n - 1);
+        let i = square_of(o[0] + (t0 + eps) * d[0], self.x0, nx);
+        let j = square_of(o[1] + (t0 + eps) * d[1], self.y0, ny);
         let step_i = if d[0] >= 0.0 { 1 } else { -1 };
         let step_j = if d[1] >= 0.0 { 1 } else { -1 };
         let next_boundary = |k: i32, step: i32, origin: f32, oc: f32, dc: f32| -> (f32, f32) {
             if dc.abs() < 1e-12 {
                 return (f32::INFINITY, f32::INFINITY);
             }
-            let edge = origin + (k + i32::from(step > 0)) as f32 * self.cell_m;
-            ((edge - oc) / dc, self.cell_m / dc.abs())
+            let edge = origin + (k + i32::from(step > 0)) as f32 * size;
+            ((edge - oc) / dc, size / dc.abs())
         };
-        let (mut t_next_x, dt_x) = next_boundary(i, step_i, self.x0, o[0], d[0]);
-        let (mut t_next_y, dt_y) = next_boundary(j, step_j, self.y0, o[1], d[1]);
+        let (t_next_x, dt_x) = next_boundary(i, step_i, self.x0, o[0], d[0]);
+        let (t_next_y, dt_y) = next_boundary(j, step_j, self.y0, o[1], d[1]);
+        Dda { i, j, step_i, step_j, t_next_x, t_next_y, dt_x, dt_y }
+    }
+
+    /// Where the ray first dips under a block's height bound between `t0` and `t1` (both inside the
+    /// grid), less `WINDOW_SLACK_M`; `t1` when it never does. Nothing (ground included: the bounds hold
+    /// the ground's) lies before that, so the cell traversal may start there.
+    fn skip_blocks(&self, o: [f32; 3], d: [f32; 3], t0: f32, t1: f32) -> f32 {
+        let (bnx, bny) = (self.bnx, self.bny);
+        let block_m = self.cell_m * BLOCK as f32;
+        let Dda { mut i, mut j, step_i, step_j, mut t_next_x, mut t_next_y, dt_x, dt_y } =
+            self.dda(o, d, t0, block_m, 1.0 / block_m, bnx, bny);
+        // The slack widens each block's stretch of ray backwards, against f32 rounding of the edges.
+        let mut t_enter = t0;
+        loop {
+            let t_x = if t_next_x < t_next_y { t_next_x } else { t_next_y };
+            let t_exit = if t_x < t1 { t_x } else { t1 };
+            let t_from = if t_enter - WINDOW_SLACK_M > t0 { t_enter - WINDOW_SLACK_M } else { t0 };
+            let (z_a, z_b) = (o[2] + t_from * d[2], o[2] + t_exit * d[2]);
+            let z_low = if z_a < z_b { z_a } else { z_b };
+            match self.block_heights.get((j * bnx + i) as usize) {
+                Some(&h) if z_low > h => {}
+                _ => return t_from,
+            }
+            if t_exit >= t1 {
+                return t1;
+            }
+            t_enter = t_exit;
+            if t_next_x < t_next_y {
+                i += step_i;
+                t_next_x += dt_x;
+                if i < 0 || i >= bnx {
+                    return t1;
+                }
+            } else {
+                j += step_j;
+                t_next_y += dt_y;
+                if j < 0 || j >= bny {
+                    return t1;
+                }
+            }
+        }
+    }
+
+    /// 2-D DDA over the cells the ray crosses between `t0` and `t1` (both inside the grid).
+    fn traverse(&self, o: [f32; 3], d: [f32; 3], t0: f32, t1: f32) -> Option<(f32, Class)> {
+        let (nx, ny) = (self.nx, self.ny);
+        let (heights, cells) = (self.heights.as_slice(), self.cells.as_slice());
+        let (refs, prims) = (self.refs.as_slice(), self.prims.as_slice());
+        let Dda { mut i, mut j, step_i, step_j, mut t_next_x, mut t_next_y, dt_x, dt_y } =
+            self.dda(o, d, t0, self.cell_m, self.inv_cell, nx, ny);
         // On flat ground the ground crossing is one division per ray, not one per cell.
         let flat_ground_t = if d[2] < 0.0 { -o[2] / d[2] } else { f32::INFINITY };
         let flat = self.relief.is_flat();
