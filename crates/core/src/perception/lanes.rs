@@ -79,13 +79,17 @@ const MIN_FRESH_CENTROIDS: usize = 2;
 /// Least total centroid weight (full-weight centroids) for a correction to be accepted.
 const MIN_FIT_WEIGHT: f64 = 3.0;
 
-/// The row family in `base_link`: centre line `o + a·x + b·x²` and spacing `s`, m.
+/// The row family in `base_link`: centre line `o + a·x + b·x²` and canopy period `s`, m. The canopy
+/// repeats `crests` times per row spacing: 1, or 2 for a grown canopy whose leaves crest either side of
+/// the row (see [`Lanes::search`]). The fit tracks the canopy's own period, whose crests are the stable
+/// features; the rows it reports are `crests · s` apart about the same centre line.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Lane {
     pub(crate) o: f64,
     pub(crate) a: f64,
     pub(crate) b: f64,
     pub(crate) s: f64,
+    pub(crate) crests: f64,
 }
 
 impl Lane {
@@ -93,8 +97,14 @@ impl Lane {
         self.o + self.a * x + self.b * x * x
     }
 
+    /// Row spacing, m.
+    pub(crate) fn spacing_m(&self) -> f64 {
+        self.crests * self.s
+    }
+
+    /// Reported row `j` (not a canopy crest) at `x`, m.
     fn row_y(&self, j: i32, x: f64) -> f64 {
-        self.centre(x) + (j as f64 + 0.5) * self.s
+        self.centre(x) + (j as f64 + 0.5) * self.spacing_m()
     }
 
     /// Row index and signed lateral residual of a point, m.
@@ -107,9 +117,11 @@ impl Lane {
     }
 
     /// The same lane with its centre moved by whole spacings to the one nearest the robot, so that
-    /// j = 0 / -1 stay the first rows left / right after the robot crosses a row.
+    /// j = 0 / -1 stay the first rows left / right after the robot crosses a row. Whole row spacings,
+    /// not canopy periods: with two crests per spacing a period would put the centre on a row.
     fn normalised(self) -> Self {
-        Self { o: self.o - self.s * (self.o / self.s).round(), ..self }
+        let spacing = self.spacing_m();
+        Self { o: self.o - spacing * (self.o / spacing).round(), ..self }
     }
 
     fn is_sane(&self, config: &DetectorConfig) -> bool {
@@ -117,7 +129,7 @@ impl Lane {
             && self.a.abs() < 1.0
             && self.b.abs() < 0.5
             && self.s >= config.spacing_min_m
-            && self.s <= config.spacing_max_m
+            && self.spacing_m() <= config.spacing_max_m
     }
 
     /// The lane seen from `to`, given in the `base_link` of `from` (both poses in `odom`): three points of
@@ -134,7 +146,7 @@ impl Lane {
             v[i] = by;
         }
         let p = m.lu().solve(&v)?;
-        Some(Self { o: p[0], a: p[1], b: p[2], s: self.s }.normalised())
+        Some(Self { o: p[0], a: p[1], b: p[2], ..*self }.normalised())
     }
 
     /// Row `j` as the detector reports it, from the robot to `x_far_m`.
@@ -349,9 +361,12 @@ impl Lanes {
         let s = spacing(&mut self.hist, config)?;
         let ground_points = self.fill_ground(canopy, cropped, a);
         // The lane centre lies between two canopy crests; of those gaps the one nearest the robot.
-        let o = Lane { o: circular_mean(&self.hist, s) + 0.5 * s, a, b: 0.0, s }.normalised().o;
-        let s = ground_period(&self.ground, ground_points, s, config).unwrap_or(s);
-        let lane = Lane { o, a, b: 0.0, s }.normalised();
+        let o = Lane { o: circular_mean(&self.hist, s) + 0.5 * s, a, b: 0.0, s, crests: 1.0 }.normalised().o;
+        let (s, crests) = match ground_period(&self.ground, ground_points, s, config) {
+            Some(spacing_m) => (0.5 * spacing_m, 2.0),
+            None => (s, 1.0),
+        };
+        let lane = Lane { o, a, b: 0.0, s, crests }.normalised();
         lane.is_sane(config).then_some(lane)
     }
 
@@ -498,6 +513,7 @@ impl Lanes {
         let mut lane = *predicted;
         let mut support = [0.0; 2];
         let mut far = [0.0f64; 2];
+        let crests = predicted.crests as i32;
         for pass in 0..2 {
             // Sums of the symmetric normal matrix of φ = [1, q, x, x²] (q = j + ½) and of φ·y.
             let [mut sw, mut sq, mut sx, mut sxx, mut sqq, mut sqx, mut sqxx, mut sxxx, mut sx4] = [0.0; 9];
@@ -529,8 +545,9 @@ impl Lanes {
                 sqy += w * q * y;
                 sxy += w * x * y;
                 sxxy += w * xx * y;
-                if j == 0 || j == -1 {
-                    let k = usize::from(j == -1);
+                // The first row left is crests 0..c of the canopy lattice, the first right -c..0.
+                if (-crests..crests).contains(&j) {
+                    let k = usize::from(j < 0);
                     support[k] += w;
                     far[k] = far[k].max(x);
                 }
@@ -565,7 +582,7 @@ impl Lanes {
                 r[i] += w * v;
             }
             let p = n.cholesky()?.solve(&r);
-            lane = Lane { o: p[0], s: p[1], a: p[2], b: p[3] };
+            lane = Lane { o: p[0], s: p[1], a: p[2], b: p[3], crests: predicted.crests };
             if !lane.is_sane(config) {
                 return None;
             }
@@ -759,7 +776,7 @@ mod tests {
         }
         cropped.extend_from_slice(&canopy);
         let lane = Lanes::new(&cfg).search(&canopy, &cropped, &cfg).unwrap();
-        assert!((lane.s - 0.75).abs() < 0.03, "{lane:?}");
+        assert!((lane.spacing_m() - 0.75).abs() < 0.03, "{lane:?}");
         assert!(lane.o.abs() < 0.03, "{lane:?}");
     }
 
@@ -776,12 +793,12 @@ mod tests {
             cropped.extend(rows.iter().map(|r| [x as f32, (r + 0.1875) as f32, -0.4]));
         }
         let lane = Lanes::new(&cfg).search(&canopy, &cropped, &cfg).unwrap();
-        assert!((lane.s - 0.375).abs() < 0.02, "{lane:?}");
+        assert!((lane.spacing_m() - 0.375).abs() < 0.02, "{lane:?}");
     }
 
     #[test]
     fn transport_moves_the_lane_with_the_robot() {
-        let lane = Lane { o: 0.1, a: 0.0, b: 0.0, s: 0.75 };
+        let lane = Lane { o: 0.1, a: 0.0, b: 0.0, s: 0.75, crests: 1.0 };
         let from = Pose2::new(0.0, 0.0, 0.0);
         let to = Pose2::new(1.0, 0.05, 0.1);
         let t = lane.transport(&from, &to).unwrap();
@@ -792,7 +809,7 @@ mod tests {
 
     #[test]
     fn crossing_a_row_renumbers_the_rows() {
-        let lane = Lane { o: 0.5, a: 0.0, b: 0.0, s: 0.75 }.normalised();
+        let lane = Lane { o: 0.5, a: 0.0, b: 0.0, s: 0.75, crests: 1.0 }.normalised();
         assert!((lane.o + 0.25).abs() < 1e-12);
     }
 }
