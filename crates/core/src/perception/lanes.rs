@@ -753,31 +753,55 @@ mod tests {
         assert!((lane.o - 0.1).abs() < 0.03, "{lane:?}");
     }
 
-    #[test]
-    fn spacing_does_not_lock_to_half_on_grown_canopy() {
-        // Rows 0.75 m apart, lane centre at 0: the canopy crests a quarter spacing either side of each row
-        // (leaves arching into the inter-row), so the canopy alone repeats every 0.375 m; the ground shows
-        // through along the row lines only. Spacing within 3 cm of 0.75, centre within 3 cm of 0.
-        let cfg = DetectorConfig::default();
-        let rows: Vec<f64> = (-3..3).map(|k| (k as f64 + 0.5) * 0.75).collect();
+    /// One scan of a grown canopy, `base_link` at lateral offset `y0_m` from the lane centre: rows 0.75 m
+    /// apart, the canopy cresting a quarter spacing either side of each row (leaves arching into the
+    /// inter-row), so the canopy alone repeats every 0.375 m; low leaf tips meet over the inter-row and
+    /// the ground shows along the row lines only. Returns (canopy, cropped).
+    fn two_crest_scan(y0_m: f64) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
         let (mut canopy, mut cropped) = (Vec::new(), Vec::new());
         for i in 0..250 {
             let x = 1.5 + 0.012 * i as f64;
-            for &r in &rows {
+            for r in (-3..3).map(|k| (k as f64 + 0.5) * 0.75 - y0_m) {
                 for dy in [-0.1875, 0.1875] {
                     for e in [-0.02, 0.0, 0.02] {
                         canopy.push([x as f32, (r + dy + e) as f32, 0.3]);
                     }
                 }
-                // Low leaf tips meet over the inter-row; the ground shows along the row line.
                 canopy.push([x as f32, (r + 0.375) as f32, 0.05]);
                 cropped.push([x as f32, r as f32, -0.4]);
             }
         }
         cropped.extend_from_slice(&canopy);
+        (canopy, cropped)
+    }
+
+    #[test]
+    fn spacing_does_not_lock_to_half_on_grown_canopy() {
+        // Spacing within 3 cm of 0.75, centre within 3 cm of 0 (one scan).
+        let cfg = DetectorConfig::default();
+        let (canopy, cropped) = two_crest_scan(0.0);
         let lane = Lanes::new(&cfg).search(&canopy, &cropped, &cfg).unwrap();
         assert!((lane.spacing_m() - 0.75).abs() < 0.03, "{lane:?}");
         assert!(lane.o.abs() < 0.03, "{lane:?}");
+    }
+
+    #[test]
+    fn two_crest_lane_keeps_its_rows_while_tracking() {
+        // The robot drives 4 m along the lane, 0.1 m per scan, drifting 0.15 m left: the lane keeps the
+        // full spacing and its centre stays at the true one, within 3 cm.
+        let cfg = DetectorConfig::default();
+        let mut lanes = Lanes::new(&cfg);
+        let mut map = CentroidMap::new(cfg.map_capacity);
+        let mut centroids = Vec::new();
+        for k in 0..40 {
+            let y0 = 0.15 * k as f64 / 40.0;
+            let (canopy, cropped) = two_crest_scan(y0);
+            let odom = Pose2::new(0.1 * k as f64, y0, 0.0);
+            let out = lanes.step(&canopy, &cropped, &odom, 0.1 * k as f64, &cfg, &mut map, &mut centroids);
+            let lane = out.lane.unwrap();
+            assert!((lane.spacing_m() - 0.75).abs() < 0.03, "scan {k}: {lane:?}");
+            assert!((lane.o + y0).abs() < 0.03, "scan {k}: {lane:?}");
+        }
     }
 
     #[test]
