@@ -241,7 +241,7 @@ impl RowDetector {
         Detection {
             left: Some(left),
             right: Some(right),
-            row_spacing_m: Some(lane.s),
+            row_spacing_m: Some(lane.spacing_m()),
             row_end_ahead_m: out.row_end_ahead_m,
             ..Detection::empty(t, status)
         }

@@ -67,18 +67,29 @@ const PRIOR_FREE: f64 = 1e-3;
 /// accepted as a row pattern.
 const MIN_SEARCH_POINTS: usize = 30;
 const MIN_PERIODICITY: f64 = 0.15;
+/// Fewest ground returns (cropped points below the canopy plane) for the start-up search to consult
+/// them, and the ratio of their autocorrelation at one spacing to that at two spacings below which the
+/// ground is taken to repeat only every second canopy period (see [`Lanes::search`]).
+const MIN_GROUND_POINTS: f64 = 200.0;
+const GROUND_HALF_PERIOD_RATIO: f64 = 0.5;
+/// Fewest returns in a lateral bin for its ground share to count.
+const MIN_BIN_RETURNS: f64 = 3.0;
 /// Fewest centroids from the current scan for it to count as seeing the rows.
 const MIN_FRESH_CENTROIDS: usize = 2;
 /// Least total centroid weight (full-weight centroids) for a correction to be accepted.
 const MIN_FIT_WEIGHT: f64 = 3.0;
 
-/// The row family in `base_link`: centre line `o + a·x + b·x²` and spacing `s`, m.
+/// The row family in `base_link`: centre line `o + a·x + b·x²` and canopy period `s`, m. The canopy
+/// repeats `crests` times per row spacing: 1, or 2 for a grown canopy whose leaves crest either side of
+/// the row (see [`Lanes::search`]). The fit tracks the canopy's own period, whose crests are the stable
+/// features; the rows it reports are `crests · s` apart about the same centre line.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Lane {
     pub(crate) o: f64,
     pub(crate) a: f64,
     pub(crate) b: f64,
     pub(crate) s: f64,
+    pub(crate) crests: f64,
 }
 
 impl Lane {
@@ -86,8 +97,14 @@ impl Lane {
         self.o + self.a * x + self.b * x * x
     }
 
+    /// Row spacing, m.
+    pub(crate) fn spacing_m(&self) -> f64 {
+        self.crests * self.s
+    }
+
+    /// Reported row `j` (not a canopy crest) at `x`, m.
     fn row_y(&self, j: i32, x: f64) -> f64 {
-        self.centre(x) + (j as f64 + 0.5) * self.s
+        self.centre(x) + (j as f64 + 0.5) * self.spacing_m()
     }
 
     /// Row index and signed lateral residual of a point, m.
@@ -100,9 +117,11 @@ impl Lane {
     }
 
     /// The same lane with its centre moved by whole spacings to the one nearest the robot, so that
-    /// j = 0 / -1 stay the first rows left / right after the robot crosses a row.
+    /// j = 0 / -1 stay the first rows left / right after the robot crosses a row. Whole row spacings,
+    /// not canopy periods: with two crests per spacing a period would put the centre on a row.
     fn normalised(self) -> Self {
-        Self { o: self.o - self.s * (self.o / self.s).round(), ..self }
+        let spacing = self.spacing_m();
+        Self { o: self.o - spacing * (self.o / spacing).round(), ..self }
     }
 
     fn is_sane(&self, config: &DetectorConfig) -> bool {
@@ -110,7 +129,7 @@ impl Lane {
             && self.a.abs() < 1.0
             && self.b.abs() < 0.5
             && self.s >= config.spacing_min_m
-            && self.s <= config.spacing_max_m
+            && self.spacing_m() <= config.spacing_max_m
     }
 
     /// The lane seen from `to`, given in the `base_link` of `from` (both poses in `odom`): three points of
@@ -127,7 +146,7 @@ impl Lane {
             v[i] = by;
         }
         let p = m.lu().solve(&v)?;
-        Some(Self { o: p[0], a: p[1], b: p[2], s: self.s }.normalised())
+        Some(Self { o: p[0], a: p[1], b: p[2], ..*self }.normalised())
     }
 
     /// Row `j` as the detector reports it, from the robot to `x_far_m`.
@@ -176,6 +195,10 @@ pub(crate) struct Lanes {
     visible: Vec<u32>,
     x_bins: usize,
     hist: Vec<f64>,
+    /// Lateral histograms of the start-up search: ground returns (cropped, not canopy), then their
+    /// share of all returns; all returns.
+    ground: Vec<f64>,
+    returns: Vec<f64>,
     /// Centroids of the fit, `[x, y, weight]` in `base_link`.
     local: Vec<[f64; 3]>,
     /// This scan's centroids, `[x, y, weight]` in `base_link`.
@@ -201,6 +224,8 @@ impl Lanes {
             visible: vec![0; x_bins],
             x_bins,
             hist: vec![0.0; HIST_BINS],
+            ground: vec![0.0; HIST_BINS],
+            returns: vec![0.0; HIST_BINS],
             local: Vec::with_capacity(config.map_capacity + ROWS * x_bins),
             current: Vec::with_capacity(ROWS * x_bins),
             last_key: None,
@@ -241,7 +266,7 @@ impl Lanes {
         }
         let predicted = match self.model {
             Some((lane, pose)) => lane.transport(&pose, odom).filter(|l| l.is_sane(config)),
-            None => self.search(canopy, config),
+            None => self.search(canopy, cropped, config),
         };
         let Some(predicted) = predicted else {
             self.model = None;
@@ -305,8 +330,18 @@ impl Lanes {
         self.correct(&predicted, odom, config, map, centroids).map_or(0, |_| centroids.len())
     }
 
-    /// Start-up search for heading, spacing and phase from one scan's canopy.
-    fn search(&mut self, canopy: &[[f32; 3]], config: &DetectorConfig) -> Option<Lane> {
+    /// Start-up search for heading, spacing and phase from one scan's canopy (`cropped` gives the
+    /// ground returns).
+    ///
+    /// A grown canopy can repeat twice per row spacing: leaves arching into the inter-row make two
+    /// crests per spacing, and the canopy alone then cannot tell them from rows at half the spacing (a
+    /// common 0.38 m soybean spacing looks the same). The ground breaks the tie: where it shows through
+    /// differs between the row and the inter-row, so its share of the returns repeats once per true
+    /// spacing. When it repeats at about twice the canopy's period and not at the period itself, the
+    /// spacing is the ground's period. The lane centre is the gap between canopy crests nearest the
+    /// robot either way: the search assumes the robot starts within a quarter spacing of its lane
+    /// centre (between its two rows).
+    fn search(&mut self, canopy: &[[f32; 3]], cropped: &[[f32; 3]], config: &DetectorConfig) -> Option<Lane> {
         if canopy.len() < MIN_SEARCH_POINTS {
             return None;
         }
@@ -323,75 +358,64 @@ impl Lanes {
         }
         let a = best.1;
         self.fill_hist(canopy, a, 1);
-        let s = self.spacing(config)?;
-        let (mut c, mut sn) = (0.0, 0.0);
-        for (i, h) in self.hist.iter().enumerate() {
-            let phase = std::f64::consts::TAU * hist_centre(i) / s;
-            c += h * phase.cos();
-            sn += h * phase.sin();
-        }
-        let row_centre = sn.atan2(c) * s / std::f64::consts::TAU;
-        let lane = Lane { o: row_centre + 0.5 * s, a, b: 0.0, s }.normalised();
+        let s = spacing(&mut self.hist, config)?;
+        let ground_points = self.fill_ground(canopy, cropped, a);
+        // The lane centre lies between two canopy crests; of those gaps the one nearest the robot.
+        let o = Lane { o: circular_mean(&self.hist, s) + 0.5 * s, a, b: 0.0, s, crests: 1.0 }.normalised().o;
+        let (s, crests) = match ground_period(&self.ground, ground_points, s, config) {
+            Some(spacing_m) => (0.5 * spacing_m, 2.0),
+            None => (s, 1.0),
+        };
+        let lane = Lane { o, a, b: 0.0, s, crests }.normalised();
         lane.is_sane(config).then_some(lane)
+    }
+
+    /// Lateral profile of the share of returns that reach the ground (cropped points that are not
+    /// canopy), along heading slope `a`, demeaned; bins with too few returns are 0. A share, not a count:
+    /// the sensor sees far more of its own inter-row than of the others, and counts would carry that
+    /// envelope. Returns the number of ground returns. The canopy is a subset of the cropped points with
+    /// the same `x, y`.
+    fn fill_ground(&mut self, canopy: &[[f32; 3]], cropped: &[[f32; 3]], a: f64) -> f64 {
+        self.ground.iter_mut().for_each(|h| *h = 0.0);
+        self.returns.iter_mut().for_each(|h| *h = 0.0);
+        for p in cropped {
+            if let Some(i) = hist_index(p[1] as f64 - a * p[0] as f64)
+                && let (Some(g), Some(r)) = (self.ground.get_mut(i), self.returns.get_mut(i))
+            {
+                *g += 1.0;
+                *r += 1.0;
+            }
+        }
+        for p in canopy {
+            if let Some(g) = hist_index(p[1] as f64 - a * p[0] as f64).and_then(|i| self.ground.get_mut(i)) {
+                *g -= 1.0;
+            }
+        }
+        let total = self.ground.iter().sum::<f64>();
+        let (mut sum, mut n) = (0.0, 0.0);
+        for (g, &r) in self.ground.iter_mut().zip(&self.returns) {
+            if r >= MIN_BIN_RETURNS {
+                *g /= r;
+                sum += *g;
+                n += 1.0;
+            }
+        }
+        let mean = if n > 0.0 { sum / n } else { 0.0 };
+        for (g, &r) in self.ground.iter_mut().zip(&self.returns) {
+            *g = if r >= MIN_BIN_RETURNS { *g - mean } else { 0.0 };
+        }
+        total
     }
 
     fn fill_hist(&mut self, canopy: &[[f32; 3]], a: f64, stride: usize) {
         self.hist.iter_mut().for_each(|h| *h = 0.0);
         for p in canopy.iter().step_by(stride) {
-            let u = p[1] as f64 - a * p[0] as f64;
-            let i = ((u + HIST_HALF_M) / HIST_BIN_M).floor();
-            if i >= 0.0
-                && let Some(h) = self.hist.get_mut(i as usize)
-            {
+            if let Some(h) = hist_index(p[1] as f64 - a * p[0] as f64).and_then(|i| self.hist.get_mut(i)) {
                 // Weighted by height like the measure step: under a closed canopy, leaves arching into
                 // the inter-row are nearly as many as the returns of the crest, but lower.
                 *h += (p[2] as f64).powi(2) + HEIGHT_WEIGHT_FLOOR_M2;
             }
         }
-    }
-
-    /// Row spacing from the autocorrelation of the lateral histogram: the strongest lag in the searched
-    /// range, halved when its half is nearly as strong (a lag of two spacings also correlates).
-    fn spacing(&mut self, config: &DetectorConfig) -> Option<f64> {
-        let mean = self.hist.iter().sum::<f64>() / HIST_BINS as f64;
-        self.hist.iter_mut().for_each(|h| *h -= mean);
-        let ac = |lag: usize| -> f64 {
-            let n = HIST_BINS - lag;
-            self.hist.iter().zip(&self.hist[lag..]).map(|(a, b)| a * b).sum::<f64>() / n as f64
-        };
-        let energy = ac(0);
-        if energy <= 0.0 {
-            return None;
-        }
-        let lo = (config.spacing_min_m / HIST_BIN_M).ceil() as usize;
-        let hi = ((config.spacing_max_m / HIST_BIN_M).floor() as usize).min(HIST_BINS / 2);
-        let mut best = (f64::NEG_INFINITY, lo);
-        for lag in lo..=hi {
-            let v = ac(lag);
-            if v > best.0 {
-                best = (v, lag);
-            }
-        }
-        let half = best.1 / 2;
-        if half >= lo {
-            // Search around the half lag: the true spacing may sit a bin off it.
-            let (v, lag) = (half.saturating_sub(2)..=half + 2)
-                .map(|l| (ac(l), l))
-                .fold((f64::NEG_INFINITY, half), |m, x| if x.0 > m.0 { x } else { m });
-            if v >= 0.7 * best.0 {
-                best = (v, lag);
-            }
-        }
-        if best.0 / energy < MIN_PERIODICITY {
-            return None;
-        }
-        // Parabolic refinement of the peak.
-        let lag = best.1;
-        let (l, c, r) = (ac(lag.saturating_sub(1)), best.0, ac(lag + 1));
-        let den = l - 2.0 * c + r;
-        let shift = if den < 0.0 { (0.5 * (l - r) / den).clamp(-0.5, 0.5) } else { 0.0 };
-        let s = (lag as f64 + shift) * HIST_BIN_M;
-        (s >= config.spacing_min_m && s <= config.spacing_max_m).then_some(s)
     }
 
     /// Bins the canopy points gated to the predicted rows, and the visible (any) points near the lane.
@@ -489,6 +513,7 @@ impl Lanes {
         let mut lane = *predicted;
         let mut support = [0.0; 2];
         let mut far = [0.0f64; 2];
+        let crests = predicted.crests as i32;
         for pass in 0..2 {
             // Sums of the symmetric normal matrix of φ = [1, q, x, x²] (q = j + ½) and of φ·y.
             let [mut sw, mut sq, mut sx, mut sxx, mut sqq, mut sqx, mut sqxx, mut sxxx, mut sx4] = [0.0; 9];
@@ -520,8 +545,9 @@ impl Lanes {
                 sqy += w * q * y;
                 sxy += w * x * y;
                 sxxy += w * xx * y;
-                if j == 0 || j == -1 {
-                    let k = usize::from(j == -1);
+                // The first row left is crests 0..c of the canopy lattice, the first right -c..0.
+                if (-crests..crests).contains(&j) {
+                    let k = usize::from(j < 0);
                     support[k] += w;
                     far[k] = far[k].max(x);
                 }
@@ -556,7 +582,7 @@ impl Lanes {
                 r[i] += w * v;
             }
             let p = n.cholesky()?.solve(&r);
-            lane = Lane { o: p[0], s: p[1], a: p[2], b: p[3] };
+            lane = Lane { o: p[0], s: p[1], a: p[2], b: p[3], crests: predicted.crests };
             if !lane.is_sane(config) {
                 return None;
             }
@@ -600,6 +626,100 @@ impl Lanes {
     }
 }
 
+/// Row spacing from the autocorrelation of the lateral canopy histogram (demeaned in place): the
+/// strongest lag in the searched range, halved when its half is nearly as strong (a lag of two spacings
+/// also correlates).
+fn spacing(hist: &mut [f64], config: &DetectorConfig) -> Option<f64> {
+    demean(hist);
+    let ac = |lag: usize| autocorrelation(hist, lag);
+    let energy = ac(0);
+    if energy <= 0.0 {
+        return None;
+    }
+    let lo = (config.spacing_min_m / HIST_BIN_M).ceil() as usize;
+    let hi = ((config.spacing_max_m / HIST_BIN_M).floor() as usize).min(HIST_BINS / 2);
+    let mut best = (f64::NEG_INFINITY, lo);
+    for lag in lo..=hi {
+        let v = ac(lag);
+        if v > best.0 {
+            best = (v, lag);
+        }
+    }
+    let half = best.1 / 2;
+    if half >= lo {
+        // Search around the half lag: the true spacing may sit a bin off it.
+        let (v, lag) = (half.saturating_sub(2)..=half + 2)
+            .map(|l| (ac(l), l))
+            .fold((f64::NEG_INFINITY, half), |m, x| if x.0 > m.0 { x } else { m });
+        if v >= 0.7 * best.0 {
+            best = (v, lag);
+        }
+    }
+    if best.0 / energy < MIN_PERIODICITY {
+        return None;
+    }
+    // Parabolic refinement of the peak.
+    let lag = best.1;
+    let (l, c, r) = (ac(lag.saturating_sub(1)), best.0, ac(lag + 1));
+    let den = l - 2.0 * c + r;
+    let shift = if den < 0.0 { (0.5 * (l - r) / den).clamp(-0.5, 0.5) } else { 0.0 };
+    let s = (lag as f64 + shift) * HIST_BIN_M;
+    (s >= config.spacing_min_m && s <= config.spacing_max_m).then_some(s)
+}
+
+/// Tests the canopy period `s` against the ground-share profile of `ground_points` returns: when the
+/// ground repeats about every `2s` but not every `s`, the rows are that far apart and the canopy has two
+/// crests per spacing. Returns the ground's period, m, or `None` when the ground is too sparse to say,
+/// agrees with `s`, or `2s` is outside the searched range.
+fn ground_period(ground: &[f64], ground_points: f64, s: f64, config: &DetectorConfig) -> Option<f64> {
+    if 2.0 * s > config.spacing_max_m || ground_points < MIN_GROUND_POINTS {
+        return None;
+    }
+    // The canopy period of a two-crest canopy is only roughly half the spacing: look for the ground's
+    // peaks within a fifth of each lag.
+    let peak = |period_m: f64| -> (f64, f64) {
+        let lo = (0.8 * period_m / HIST_BIN_M).floor() as usize;
+        let hi = (1.2 * period_m / HIST_BIN_M).ceil() as usize;
+        (lo..=hi)
+            .map(|l| (autocorrelation(ground, l), l as f64 * HIST_BIN_M))
+            .fold((f64::NEG_INFINITY, period_m), |m, x| if x.0 > m.0 { x } else { m })
+    };
+    let ((at_s, _), (at_2s, period_m)) = (peak(s), peak(2.0 * s));
+    let periodic = at_2s >= MIN_PERIODICITY * autocorrelation(ground, 0);
+    let period_ok = period_m >= config.spacing_min_m && period_m <= config.spacing_max_m;
+    (periodic && period_ok && at_s < GROUND_HALF_PERIOD_RATIO * at_2s).then_some(period_m)
+}
+
+fn demean(hist: &mut [f64]) {
+    let mean = hist.iter().sum::<f64>() / hist.len().max(1) as f64;
+    hist.iter_mut().for_each(|h| *h -= mean);
+}
+
+/// Autocorrelation of a histogram at `lag` bins, per overlapping bin pair.
+fn autocorrelation(hist: &[f64], lag: usize) -> f64 {
+    let Some(shifted) = hist.get(lag..) else { return 0.0 };
+    let n = shifted.len().max(1) as f64;
+    hist.iter().zip(shifted).map(|(a, b)| a * b).sum::<f64>() / n
+}
+
+/// Lateral position (m) of the peak of a histogram's component with `period_m`, in `(-period_m/2,
+/// period_m/2]`.
+fn circular_mean(hist: &[f64], period_m: f64) -> f64 {
+    let (mut c, mut sn) = (0.0, 0.0);
+    for (i, h) in hist.iter().enumerate() {
+        let phase = std::f64::consts::TAU * hist_centre(i) / period_m;
+        c += h * phase.cos();
+        sn += h * phase.sin();
+    }
+    sn.atan2(c) * period_m / std::f64::consts::TAU
+}
+
+/// Histogram bin of lateral coordinate `u`, m, if inside.
+fn hist_index(u: f64) -> Option<usize> {
+    let i = ((u + HIST_HALF_M) / HIST_BIN_M).floor();
+    (i >= 0.0 && i < HIST_BINS as f64).then_some(i as usize)
+}
+
 fn hist_centre(i: usize) -> f64 {
     -HIST_HALF_M + (i as f64 + 0.5) * HIST_BIN_M
 }
@@ -627,15 +747,82 @@ mod tests {
         // centre within 3 cm (one scan, no map yet).
         let cfg = DetectorConfig::default();
         let pts = rows_of_points(&[-1.025, -0.275, 0.475, 1.225], 5f64.to_radians());
-        let lane = Lanes::new(&cfg).search(&pts, &cfg).unwrap();
+        let lane = Lanes::new(&cfg).search(&pts, &pts, &cfg).unwrap();
         assert!((lane.s - 0.75).abs() < 0.02, "{lane:?}");
         assert!((lane.a.atan() - 5f64.to_radians()).abs() < 1f64.to_radians(), "{lane:?}");
         assert!((lane.o - 0.1).abs() < 0.03, "{lane:?}");
     }
 
+    /// One scan of a grown canopy, `base_link` at lateral offset `y0_m` from the lane centre: rows 0.75 m
+    /// apart, the canopy cresting a quarter spacing either side of each row (leaves arching into the
+    /// inter-row), so the canopy alone repeats every 0.375 m; low leaf tips meet over the inter-row and
+    /// the ground shows along the row lines only. Returns (canopy, cropped).
+    fn two_crest_scan(y0_m: f64) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
+        let (mut canopy, mut cropped) = (Vec::new(), Vec::new());
+        for i in 0..250 {
+            let x = 1.5 + 0.012 * i as f64;
+            for r in (-3..3).map(|k| (k as f64 + 0.5) * 0.75 - y0_m) {
+                for dy in [-0.1875, 0.1875] {
+                    for e in [-0.02, 0.0, 0.02] {
+                        canopy.push([x as f32, (r + dy + e) as f32, 0.3]);
+                    }
+                }
+                canopy.push([x as f32, (r + 0.375) as f32, 0.05]);
+                cropped.push([x as f32, r as f32, -0.4]);
+            }
+        }
+        cropped.extend_from_slice(&canopy);
+        (canopy, cropped)
+    }
+
+    #[test]
+    fn spacing_does_not_lock_to_half_on_grown_canopy() {
+        // Spacing within 3 cm of 0.75, centre within 3 cm of 0 (one scan).
+        let cfg = DetectorConfig::default();
+        let (canopy, cropped) = two_crest_scan(0.0);
+        let lane = Lanes::new(&cfg).search(&canopy, &cropped, &cfg).unwrap();
+        assert!((lane.spacing_m() - 0.75).abs() < 0.03, "{lane:?}");
+        assert!(lane.o.abs() < 0.03, "{lane:?}");
+    }
+
+    #[test]
+    fn two_crest_lane_keeps_its_rows_while_tracking() {
+        // The robot drives 4 m along the lane, 0.1 m per scan, drifting 0.15 m left: the lane keeps the
+        // full spacing and its centre stays at the true one, within 3 cm.
+        let cfg = DetectorConfig::default();
+        let mut lanes = Lanes::new(&cfg);
+        let mut map = CentroidMap::new(cfg.map_capacity);
+        let mut centroids = Vec::new();
+        for k in 0..40 {
+            let y0 = 0.15 * k as f64 / 40.0;
+            let (canopy, cropped) = two_crest_scan(y0);
+            let odom = Pose2::new(0.1 * k as f64, y0, 0.0);
+            let out = lanes.step(&canopy, &cropped, &odom, 0.1 * k as f64, &cfg, &mut map, &mut centroids);
+            let lane = out.lane.unwrap();
+            assert!((lane.spacing_m() - 0.75).abs() < 0.03, "scan {k}: {lane:?}");
+            assert!((lane.o + y0).abs() < 0.03, "scan {k}: {lane:?}");
+        }
+    }
+
+    #[test]
+    fn narrow_rows_keep_their_spacing_when_the_ground_agrees() {
+        // Rows truly 0.375 m apart with the ground showing in every inter-row: no doubling, spacing
+        // within 2 cm.
+        let cfg = DetectorConfig::default();
+        let rows: Vec<f64> = (-6..6).map(|k| (k as f64 + 0.5) * 0.375).collect();
+        let canopy = rows_of_points(&rows, 0.0);
+        let mut cropped = canopy.clone();
+        for i in 0..250 {
+            let x = 1.5 + 0.012 * i as f64;
+            cropped.extend(rows.iter().map(|r| [x as f32, (r + 0.1875) as f32, -0.4]));
+        }
+        let lane = Lanes::new(&cfg).search(&canopy, &cropped, &cfg).unwrap();
+        assert!((lane.spacing_m() - 0.375).abs() < 0.02, "{lane:?}");
+    }
+
     #[test]
     fn transport_moves_the_lane_with_the_robot() {
-        let lane = Lane { o: 0.1, a: 0.0, b: 0.0, s: 0.75 };
+        let lane = Lane { o: 0.1, a: 0.0, b: 0.0, s: 0.75, crests: 1.0 };
         let from = Pose2::new(0.0, 0.0, 0.0);
         let to = Pose2::new(1.0, 0.05, 0.1);
         let t = lane.transport(&from, &to).unwrap();
@@ -646,7 +833,7 @@ mod tests {
 
     #[test]
     fn crossing_a_row_renumbers_the_rows() {
-        let lane = Lane { o: 0.5, a: 0.0, b: 0.0, s: 0.75 }.normalised();
+        let lane = Lane { o: 0.5, a: 0.0, b: 0.0, s: 0.75, crests: 1.0 }.normalised();
         assert!((lane.o + 0.25).abs() < 1e-12);
     }
 }
