@@ -251,39 +251,8 @@ impl<W: Write + Seek> RecordingWriter<W> {
         detection: &Detection,
         centroids: &[[f64; 2]],
     ) -> Result<(), WriteError> {
-        let stamp_s = detection.stamp_s;
-        let h = header(stamp_s, "base_link")?;
-        let base = Marker { header: h, ns: "rows".into(), pose: Pose::default(), ..Marker::default() };
-        let row = |id: i32, r: Option<&RowEstimate>, color: ColorRgba| match r {
-            Some(r) => Marker {
-                id,
-                marker_type: Marker::LINE_STRIP,
-                action: Marker::ADD,
-                scale: Vector3 { x: 0.05, ..Default::default() },
-                color,
-                points: vec![
-                    Point { x: r.line[0], y: r.line[1], z: 0.0 },
-                    Point { x: r.line[2], y: r.line[3], z: 0.0 },
-                ],
-                ..base.clone()
-            },
-            None => Marker { id, action: Marker::DELETE, ..base.clone() },
-        };
-        let markers = vec![
-            row(0, detection.left.as_ref(), ColorRgba { r: 0.1, g: 0.9, b: 0.1, a: 1.0 }),
-            row(1, detection.right.as_ref(), ColorRgba { r: 0.1, g: 0.4, b: 1.0, a: 1.0 }),
-            Marker {
-                ns: "centroids".into(),
-                id: 2,
-                marker_type: Marker::SPHERE_LIST,
-                action: Marker::ADD,
-                scale: Vector3 { x: 0.06, y: 0.06, z: 0.06 },
-                color: ColorRgba { r: 1.0, g: 0.6, b: 0.0, a: 1.0 },
-                points: centroids.iter().map(|c| Point { x: c[0], y: c[1], z: 0.0 }).collect(),
-                ..base.clone()
-            },
-        ];
-        self.write(topic, stamp_s, &MarkerArray { markers })
+        let markers = row_markers(detection, centroids, header(detection.stamp_s, "base_link")?);
+        self.write(topic, detection.stamp_s, &markers)
     }
 
     /// An IMU sample: angular velocity (rad/s) and linear acceleration (m/s²) in `frame_id`, no
@@ -330,6 +299,43 @@ impl<W: Write + Seek> RecordingWriter<W> {
         self.writer.finish()?;
         Ok(self.writer.into_inner())
     }
+}
+
+/// The rows of a detection as a `MarkerArray` stamped with `header` (frame `base_link`): each row a
+/// LINE_STRIP (a DELETE while it is not seen, so stale rows vanish in RViz/Foxglove) and the detector's
+/// centroids as a SPHERE_LIST. Shared by recordings and the live node, so both look the same.
+pub fn row_markers(detection: &Detection, centroids: &[[f64; 2]], header: Header) -> MarkerArray {
+    let base = Marker { header, ns: "rows".into(), pose: Pose::default(), ..Marker::default() };
+    let row = |id: i32, r: Option<&RowEstimate>, color: ColorRgba| match r {
+        Some(r) => Marker {
+            id,
+            marker_type: Marker::LINE_STRIP,
+            action: Marker::ADD,
+            scale: Vector3 { x: 0.05, ..Default::default() },
+            color,
+            points: vec![
+                Point { x: r.line[0], y: r.line[1], z: 0.0 },
+                Point { x: r.line[2], y: r.line[3], z: 0.0 },
+            ],
+            ..base.clone()
+        },
+        None => Marker { id, action: Marker::DELETE, ..base.clone() },
+    };
+    let markers = vec![
+        row(0, detection.left.as_ref(), ColorRgba { r: 0.1, g: 0.9, b: 0.1, a: 1.0 }),
+        row(1, detection.right.as_ref(), ColorRgba { r: 0.1, g: 0.4, b: 1.0, a: 1.0 }),
+        Marker {
+            ns: "centroids".into(),
+            id: 2,
+            marker_type: Marker::SPHERE_LIST,
+            action: Marker::ADD,
+            scale: Vector3 { x: 0.06, y: 0.06, z: 0.06 },
+            color: ColorRgba { r: 1.0, g: 0.6, b: 0.0, a: 1.0 },
+            points: centroids.iter().map(|c| Point { x: c[0], y: c[1], z: 0.0 }).collect(),
+            ..base.clone()
+        },
+    ];
+    MarkerArray { markers }
 }
 
 fn header(stamp_s: f64, frame_id: &str) -> Result<Header, WriteError> {

@@ -2,10 +2,9 @@
 //! tracked path out. Pure functions; the stamps are the messages' own (the odometry clock).
 
 use croprow_core::control::Path as TrackPath;
-use croprow_core::{Detection, Mount, Pose2, RowEstimate, Twist2};
+use croprow_core::{Detection, Mount, Pose2, Twist2};
 use croprow_io::msg::{
-    ColorRgba, Header, Marker, MarkerArray, Odometry, Path, Point, Pose, PoseStamped, Quaternion, Time,
-    Twist, Vector3,
+    Header, MarkerArray, Odometry, Path, Point, Pose, PoseStamped, Quaternion, Time, Twist, Vector3,
 };
 use nalgebra::Isometry3;
 
@@ -42,45 +41,7 @@ pub(crate) fn mount(iso: &Isometry3<f64>) -> Result<Mount, croprow_core::ConfigE
 /// The rows of a detection as a `MarkerArray` in `frame_id` (`base_link`) at the scan stamp: each row a
 /// line (deleted while not seen, so stale rows vanish), the detector's centroids as spheres.
 pub(crate) fn rows(detection: &Detection, centroids: &[[f64; 2]], frame_id: &str) -> MarkerArray {
-    let base = Marker {
-        header: header(detection.stamp_s, frame_id),
-        ns: "croprow".into(),
-        pose: Pose::default(),
-        ..Marker::default()
-    };
-    let line = |id: i32, row: Option<&RowEstimate>, color: ColorRgba| {
-        let Some(r) = row else {
-            return Marker { id, action: Marker::DELETE, ..base.clone() };
-        };
-        Marker {
-            id,
-            marker_type: Marker::LINE_STRIP,
-            action: Marker::ADD,
-            scale: Vector3 { x: 0.04, ..Vector3::default() },
-            color,
-            points: [[r.line[0], r.line[1]], [r.line[2], r.line[3]]]
-                .iter()
-                .map(|p| Point { x: p[0], y: p[1], z: 0.0 })
-                .collect(),
-            ..base.clone()
-        }
-    };
-    let spheres = Marker {
-        id: 2,
-        marker_type: Marker::SPHERE_LIST,
-        action: Marker::ADD,
-        scale: Vector3 { x: 0.05, y: 0.05, z: 0.05 },
-        color: ColorRgba { r: 0.95, g: 0.55, b: 0.1, a: 0.9 },
-        points: centroids.iter().map(|c| Point { x: c[0], y: c[1], z: 0.0 }).collect(),
-        ..base.clone()
-    };
-    MarkerArray {
-        markers: vec![
-            line(0, detection.left.as_ref(), ColorRgba { r: 0.2, g: 0.85, b: 0.2, a: 1.0 }),
-            line(1, detection.right.as_ref(), ColorRgba { r: 0.2, g: 0.45, b: 1.0, a: 1.0 }),
-            spheres,
-        ],
-    }
+    croprow_io::write::row_markers(detection, centroids, header(detection.stamp_s, frame_id))
 }
 
 /// The tracked path sampled every `spacing_m` (and at its end) as a `nav_msgs/Path` in `frame_id`
@@ -114,7 +75,8 @@ pub(crate) fn path(track: Option<&TrackPath>, stamp_s: f64, frame_id: &str, spac
 #[cfg(test)]
 mod tests {
     use super::*;
-    use croprow_core::RowStatus;
+    use croprow_core::{RowEstimate, RowStatus};
+    use croprow_io::msg::Marker;
 
     #[test]
     fn odometry_gives_planar_pose_and_body_twist() {
