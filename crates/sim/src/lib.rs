@@ -35,6 +35,7 @@
 pub mod closed_loop;
 pub mod driver;
 pub mod experiment;
+pub mod faults;
 pub mod field;
 pub mod lidar;
 pub mod metrics;
@@ -47,6 +48,7 @@ pub mod world;
 
 pub use closed_loop::{ClosedLoop, Metrics, Run, RunConfig, RunError};
 pub use driver::{Driver, DriverConfig};
+pub use faults::FaultConfig;
 pub use field::{Crop, Field, FieldConfig, Stage, Stem};
 pub use lidar::{BodyPose, Lidar, LidarConfig, ScanBuffer};
 pub use metrics::{CropDamage, CrossTrack, DetectionErrors, ErrorStats, RowError, TrueRow};
