@@ -233,6 +233,14 @@ impl Field {
     ) -> Result<Self, ConfigError> {
         config.validate()?;
         faults.validate()?;
+        let p = &faults.weed_patch;
+        let patch_clumps = p.clumps_per_m2 * p.length_m * config.row_spacing_m * f64::from(config.rows);
+        if p.enabled && patch_clumps > MAX_WEEDS {
+            return Err(ConfigError::invalid(
+                "faults.weed_patch.clumps_per_m2",
+                format!("{patch_clumps:.0} weed clumps exceed the simulator's limit of {MAX_WEEDS}"),
+            ));
+        }
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let relief = if config.relief_m > 0.0 {
             Relief::new(
@@ -658,6 +666,17 @@ mod tests {
         use crate::faults::WeedPatch;
         let c = short(Crop::Corn, Stage::Young);
         let clean = Field::generate(&c, 5).unwrap();
+        let huge = FaultConfig {
+            weed_patch: WeedPatch {
+                enabled: true,
+                length_m: 2000.0,
+                clumps_per_m2: 50.0,
+                ..WeedPatch::default()
+            },
+            ..FaultConfig::default()
+        };
+        let e = Field::generate_with_faults(&c, &huge, 5).unwrap_err().to_string();
+        assert!(e.contains("faults.weed_patch.clumps_per_m2"), "{e}");
         let faults = FaultConfig {
             weed_patch: WeedPatch { enabled: true, ..WeedPatch::default() },
             ..FaultConfig::default()

@@ -11,6 +11,7 @@
 //!                 ──► Robot (true pose) ──► Sensors (wheel odometry, IMU)
 //! World::step(cmd) ties them together at a fixed dt; Driver is the human operator of detection runs;
 //! metrics score detections (Table I), cross-track error and crop contacts against the truth.
+//! faults (a scenario's [faults] table) inject what a field throws at a robot, each where it happens.
 //! ```
 //!
 //! Every random process has its own `ChaCha8Rng` seeded from the scenario seed: the same scenario gives

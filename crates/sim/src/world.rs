@@ -51,7 +51,8 @@ const SEED_KNOCKED_LIDAR: u64 = 0x66;
 /// A completed LiDAR revolution, borrowed from the world until the next step.
 #[derive(Debug, Clone, Copy)]
 pub struct ScanView<'a> {
-    /// Stamp: the time of the last firing of the sweep, s.
+    /// Stamp: the time of the last firing of the sweep, s (off by `faults.scan_stamp.offset_s` in
+    /// that fault's stretch).
     pub stamp_s: f64,
     /// Points in the sensor frame (each at its own firing time when motion skew is on), m.
     pub points: &'a [Point3],
@@ -77,11 +78,12 @@ pub struct Step<'a> {
     pub truth: BodyPose,
     /// True body twist over the step.
     pub true_twist: Twist2,
-    /// Wheel odometry, when one was due.
+    /// Wheel odometry, when one was due (with `faults.odometry_timing`: jittered stamps, and now and
+    /// then an older message delivered after a newer one).
     pub wheel: Option<WheelOdometry>,
     /// IMU sample, when one was due.
     pub imu: Option<ImuSample>,
-    /// A LiDAR revolution, when one completed in this step.
+    /// A LiDAR revolution, when one completed in this step (none during a `faults.lidar_dropout`).
     pub scan: Option<ScanView<'a>>,
     /// Plants run over for the first time in this step.
     pub new_contacts: usize,
