@@ -18,6 +18,10 @@
 
 use crate::terrain::Relief;
 
+mod packet;
+
+pub(crate) use packet::{LANES as PACKET_LANES, Scratch as PacketScratch};
+
 /// What a LiDAR return hit. For evaluation only: a real sensor does not know it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Class {
