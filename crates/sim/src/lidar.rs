@@ -27,7 +27,7 @@ use rand_distr::{Distribution, StandardNormal};
 use serde::{Deserialize, Serialize};
 
 use crate::field::Field;
-use crate::scene::{Class, PACKET_LANES, PacketScratch};
+use crate::scene::{Class, PACKET_LANES};
 
 /// Parameters of the simulated LiDAR. Defaults: a Velodyne VLP-16 on the paper's mount.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -149,7 +149,6 @@ pub struct Lidar {
     rng: ChaCha8Rng,
     /// Hits of the columns being cast, column-major like `dirs` (allocated once: one packet's worth).
     hits: Vec<Option<(f32, Class)>>,
-    scratch: PacketScratch,
 }
 
 impl Lidar {
@@ -181,7 +180,6 @@ impl Lidar {
             mount: config.mount.isometry(),
             rng: ChaCha8Rng::seed_from_u64(seed),
             hits: vec![None; PACKET_LANES * beams],
-            scratch: PacketScratch::default(),
         })
     }
 
@@ -229,7 +227,7 @@ impl Lidar {
         let returns = Returns::of(&self.config);
         let scene = field.scene();
         let last = last.min(self.columns);
-        let Self { dirs, hits, scratch, rng, .. } = self;
+        let Self { dirs, hits, rng, .. } = self;
         let rays = dirs.get(first * beams..last * beams).unwrap_or(&[]);
         for columns in rays.chunks(PACKET_LANES * beams) {
             for beam in 0..beams {
@@ -240,7 +238,7 @@ impl Lidar {
                     n += 1;
                 }
                 let mut found = [None; PACKET_LANES];
-                scene.cast_packet(origin, &world[..n], returns.max_r, &mut found[..n], scratch);
+                scene.cast_packet(origin, &world[..n], returns.max_r, &mut found[..n]);
                 for (slot, hit) in hits.iter_mut().skip(beam).step_by(beams).zip(&found[..n]) {
                     *slot = *hit;
                 }

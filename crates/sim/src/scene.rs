@@ -20,7 +20,7 @@ use crate::terrain::Relief;
 
 mod packet;
 
-pub(crate) use packet::{LANES as PACKET_LANES, Scratch as PacketScratch};
+pub(crate) use packet::LANES as PACKET_LANES;
 
 /// What a LiDAR return hit. For evaluation only: a real sensor does not know it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -434,8 +434,14 @@ impl Scene {
 
     /// Casts the unit ray `o + t·d` (field frame) and returns the first hit with `t ≤ t_max`.
     pub fn cast(&self, o: [f32; 3], d: [f32; 3], t_max: f32) -> Option<(f32, Class)> {
+        self.cast_from(o, d, 0.0, t_max)
+    }
+
+    /// Like [`Scene::cast`] but only the hits with `t ≥ t_from` (`t_from ≥ 0`), give or take
+    /// `WINDOW_SLACK_M`: for a ray known to meet nothing before `t_from`.
+    pub fn cast_from(&self, o: [f32; 3], d: [f32; 3], t_from: f32, t_max: f32) -> Option<(f32, Class)> {
         // Everything lies between bottom_z and top_z: clip the ray to that slab first.
-        let (mut t_lo, mut t_hi) = (0f32, t_max);
+        let (mut t_lo, mut t_hi) = (t_from, t_max);
         if d[2].abs() < 1e-9 {
             if o[2] > self.top_z || o[2] < self.bottom_z {
                 return None;

@@ -1,58 +1,178 @@
 //! Beam packets: a few rays that share an origin and nearly a direction (one VLP-16 laser fired at
-//! consecutive azimuths) cast together through the scene's grid, so that they share the cell walk and
-//! the scan of each cell's primitive list instead of repeating them ray by ray.
+//! consecutive azimuths) cast together through the scene's grid, so that they share the cell walk, the
+//! scan of each cell's primitive list and each primitive's load, and the flat-patch test runs on all
+//! rays at once (lanes the compiler vectorises).
 //!
-//! Seen from above, the rays of a packet fan out in a thin wedge from the sensor. The wedge's cells are
-//! visited in order of their nearest distance to the sensor in the ground plane (`ρ_min`), band by band;
-//! every primitive listed in a visited cell at the packet's height is tested against every ray still
-//! searching, with the scene's own intersection code. A ray stops once its best hit lies closer (in the
-//! ground plane) than the next cell: any hit it has not found lies in a cell not yet visited, hence
-//! farther. So a packet returns exactly what [`Scene::cast`] returns for each ray, bit for bit where
-//! the nearest hit is unique (a test compares whole revolutions).
+//! Seen from above, the rays of a packet fan out in a thin wedge from the sensor. The walk cuts the grid
+//! into strips one cell wide across the wedge's main axis (x or y, whichever the wedge runs closer to)
+//! and visits them outwards; in each strip it visits the cells between the wedge's two boundary rays.
+//! Every primitive listed in a visited cell at the packet's height is tested against every ray still
+//! searching, with the same arithmetic as [`Scene::cast`]. A ray stops once its best hit lies before the
+//! next strip: a hit it has not found lies in a cell not yet visited, hence farther along the axis. So a
+//! packet returns what [`Scene::cast`] returns for each ray, bit for bit where the nearest hit is unique
+//! (tests compare whole revolutions; the scan hashes of `examples/raycast_cost.rs` are unchanged).
 //!
-//! Rays the wedge does not suit fall back to [`Scene::cast`]: rays that rise or are near vertical,
-//! relief (the packet takes the flat ground analytically), packets fanning wider than ~25°, and rays
-//! still searching past `REACH_M` (grazing side beams, whose wedge grows wide far out).
+//! Rays the wedge does not suit go to [`Scene::cast`]: rays that rise or are near vertical, relief (the
+//! packet takes the flat ground analytically), and packets fanning wider than ~25°; rays still searching
+//! `REACH_M` out along the axis (grazing side beams, whose wedge grows wide far out) continue alone from
+//! there.
 
-use super::{Class, Prim, Scene};
+use super::{Class, Scene, Shape};
 
-/// Rays per packet at most (the lanes of the per-cell tests).
+/// Rays per packet at most (the lanes of the per-primitive tests).
 pub(crate) const LANES: usize = 8;
 
-/// Width of a band of cells sorted together, m (ground-plane distance from the sensor).
-const BAND_M: f32 = 0.3;
-/// Rays still searching this far from the sensor (ground plane) continue alone, m.
-const REACH_M: f32 = 12.0;
-/// Slack of the wedge's cell tests and of the stopping rule, m: covers f32 rounding of distances.
+/// Rays still searching this far from the sensor along the walk's axis continue alone, m.
+const REACH_M: f32 = 10.0;
+/// Slack of the strips' cell ranges and of the stopping rule, m: covers f32 rounding.
 const SLACK_M: f32 = 1e-3;
 /// Cosine of the widest angle a packet's ray may make with the packet's mean direction (25°).
 const MIN_COS: f32 = 0.906;
 /// Rays whose horizontal component is below this (steeper than ~87°) are cast alone.
 const MIN_HORIZONTAL: f32 = 0.05;
 
-/// Reused buffers of the packet caster: the cells of the band being visited, with their `ρ_min`.
-#[derive(Debug, Clone, Default)]
-pub(crate) struct Scratch {
-    cells: Vec<(f32, u32)>,
+/// What a lane's ray has hit so far: a primitive's index, or one of these.
+const WIN_NONE: u32 = u32::MAX;
+const WIN_GROUND: u32 = u32::MAX - 1;
+
+/// The rays of a packet, one lane each, structure of arrays so that a primitive test runs on all lanes
+/// at once. A lane counts a hit at `t` when `lo < t < best`; an idle lane (no ray, or one whose answer
+/// is final) has `lo = +∞`.
+#[derive(Debug, Clone)]
+struct Lanes {
+    /// Unit directions.
+    dx: [f32; LANES],
+    dy: [f32; LANES],
+    dz: [f32; LANES],
+    lo: [f32; LANES],
+    /// Nearest hit so far, or the end of the ray's stretch while `win` is `WIN_NONE`.
+    best: [f32; LANES],
+    /// What `best` is: a primitive's index, `WIN_GROUND` or `WIN_NONE`.
+    win: [u32; LANES],
+    /// |component of the direction along the walk's axis|: the ray advances `t · along` along it.
+    along: [f32; LANES],
+    /// The nearest distance along the axis of a searching lane's `best`: before it no lane stops.
+    settled: f32,
 }
 
-/// One ray of a packet while it searches.
+impl Lanes {
+    const IDLE: Self = Self {
+        dx: [0.0; LANES],
+        dy: [0.0; LANES],
+        dz: [0.0; LANES],
+        lo: [f32::INFINITY; LANES],
+        best: [0.0; LANES],
+        win: [WIN_NONE; LANES],
+        along: [0.0; LANES],
+        settled: f32::INFINITY,
+    };
+
+    #[inline]
+    fn searching(&self, k: usize) -> bool {
+        self.lo[k] < f32::INFINITY
+    }
+
+    /// Recomputes `settled` after hits.
+    #[inline]
+    fn settle(&mut self) {
+        let mut settled = f32::INFINITY;
+        for k in 0..LANES {
+            let a = if self.lo[k] < f32::INFINITY { self.best[k] * self.along[k] } else { f32::INFINITY };
+            settled = if a < settled { a } else { settled };
+        }
+        self.settled = settled;
+    }
+
+    /// Stops the rays whose best hit (or end) lies before `dist` along the axis: no strip from there on
+    /// can hold a nearer hit. False when no ray searches any more.
+    #[inline]
+    fn retire(&mut self, dist: f32) -> bool {
+        if dist - SLACK_M <= self.settled {
+            return true;
+        }
+        for k in 0..LANES {
+            if self.best[k] * self.along[k] < dist - SLACK_M {
+                self.lo[k] = f32::INFINITY;
+            }
+        }
+        self.settle();
+        self.settled < f32::INFINITY
+    }
+
+    /// A flat patch (primitive `index`) against every lane, with `Prim::intersect`'s arithmetic
+    /// operation for operation.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn patch<const ELLIPSE: bool>(
+        &mut self,
+        o: [f32; 3],
+        po: [f32; 3],
+        n: [f32; 3],
+        ua: [f32; 3],
+        wa: [f32; 3],
+        index: u32,
+    ) {
+        let num = n[0] * (po[0] - o[0]) + n[1] * (po[1] - o[1]) + n[2] * (po[2] - o[2]);
+        // Two passes over plain arrays with the hit as a bit mask: this shape the compiler vectorises
+        // (`if`/`&&` per lane, or bool arrays, keep it scalar).
+        let (mut t, mut mask) = ([0f32; LANES], [0u32; LANES]);
+        for k in 0..LANES {
+            let (dx, dy, dz) = (self.dx[k], self.dy[k], self.dz[k]);
+            let denom = n[0] * dx + n[1] * dy + n[2] * dz;
+            let tk = num / denom;
+            let q0 = o[0] + tk * dx - po[0];
+            let q1 = o[1] + tk * dy - po[1];
+            let q2 = o[2] + tk * dz - po[2];
+            let s = q0 * ua[0] + q1 * ua[1] + q2 * ua[2];
+            let r = q0 * wa[0] + q1 * wa[1] + q2 * wa[2];
+            let inside = if ELLIPSE {
+                (s * s + r * r <= 1.0) as u32
+            } else {
+                (s.abs() <= 1.0) as u32 & (r.abs() <= 1.0) as u32
+            };
+            let hit = (denom.abs() >= 1e-12) as u32
+                & (tk > self.lo[k]) as u32
+                & (tk < self.best[k]) as u32
+                & inside;
+            mask[k] = 0u32.wrapping_sub(hit);
+            t[k] = tk;
+        }
+        let mut any = 0;
+        for k in 0..LANES {
+            let m = mask[k];
+            self.best[k] = f32::from_bits((t[k].to_bits() & m) | (self.best[k].to_bits() & !m));
+            self.win[k] = (index & m) | (self.win[k] & !m);
+            any |= m;
+        }
+        if any != 0 {
+            self.settle();
+        }
+    }
+}
+
+/// How a ray enters a packet.
+enum Start {
+    /// Its answer is known already.
+    Done(Option<(f32, Class)>),
+    /// The packet does not handle it.
+    Alone,
+    /// It searches with the packet from `t_lo`; its stretch ends at `t_hi`, on the ground if `ground`.
+    Search { t_lo: f32, t_hi: f32, ground: bool, horizontal: f32 },
+}
+
+/// The geometry of a packet's walk, seen from above.
 #[derive(Debug, Clone, Copy)]
-struct Ray {
-    d: [f32; 3],
-    /// Unit horizontal direction and the horizontal length of `d`.
-    u: [f32; 2],
-    horizontal: f32,
-    /// Height change per metre of ground-plane distance.
-    slope: f32,
-    /// Start of the ray's stretch through the scene's height slab.
-    t_lo: f32,
-    /// Nearest hit so far, or the end of the stretch while `found` is false, and its class.
-    best: f32,
-    class: Class,
-    found: bool,
-    /// Still looking for a nearer hit.
-    searching: bool,
+struct Walk {
+    /// The axis the strips cut across (0: x, 1: y) and the other one.
+    a: usize,
+    b: usize,
+    /// +1 or -1: the direction the rays go along `a`.
+    sign: f32,
+    /// The wedge's boundary rays as slopes `db/da`.
+    slopes: (f32, f32),
+    /// The steepest and the flattest descent of a ray per metre along `a` (both negative).
+    steep: f32,
+    flat: f32,
 }
 
 impl Scene {
@@ -64,18 +184,22 @@ impl Scene {
         dirs: &[[f32; 3]],
         t_max: f32,
         out: &mut [Option<(f32, Class)>],
-        scratch: &mut Scratch,
     ) {
-        let mut rays = [Ray::IDLE; LANES];
+        let mut lanes = Lanes::IDLE;
+        let mut units = [[0f32; 2]; LANES];
         let mut mean = [0f32; 2];
-        for ((&d, slot), ray) in dirs.iter().zip(out.iter_mut()).zip(rays.iter_mut()) {
+        for (k, (&d, slot)) in dirs.iter().zip(out.iter_mut()).take(LANES).enumerate() {
             *slot = None;
             match self.packet_ray(o, d, t_max) {
                 Start::Done(hit) => *slot = hit,
                 Start::Alone => *slot = self.cast(o, d, t_max),
-                Start::Search(r) => {
-                    mean = [mean[0] + r.u[0], mean[1] + r.u[1]];
-                    *ray = r;
+                Start::Search { t_lo, t_hi, ground, horizontal } => {
+                    let u = [d[0] / horizontal, d[1] / horizontal];
+                    mean = [mean[0] + u[0], mean[1] + u[1]];
+                    units[k] = u;
+                    (lanes.dx[k], lanes.dy[k], lanes.dz[k]) = (d[0], d[1], d[2]);
+                    (lanes.lo[k], lanes.best[k]) = (t_lo, t_hi);
+                    lanes.win[k] = if ground { WIN_GROUND } else { WIN_NONE };
                 }
             }
         }
@@ -83,18 +207,27 @@ impl Scene {
         if norm == 0.0 {
             return;
         }
-        let wedge = Wedge::around([mean[0] / norm, mean[1] / norm], rays.iter().filter(|r| r.searching).map(|r| r.u));
-        let complete = match wedge {
-            Some(w) => self.walk(o, &w, &mut rays, scratch),
-            None => false,
+        let walk = self.plan(&mut lanes, &units, [mean[0] / norm, mean[1] / norm]);
+        // Everything the walk has not settled lies at least this far along its axis.
+        let reached = match walk {
+            Some(w) => self.walk(o, &w, &mut lanes),
+            None => Some(0.0),
         };
-        for ((r, slot), &d) in rays.iter().zip(out.iter_mut()).zip(dirs) {
-            if r.searching {
-                // Unless the walk visited every cell, one it did not may hold a nearer hit: the ray goes
-                // alone, from the start.
-                *slot = if complete { r.hit() } else { self.cast(o, d, t_max) };
-            } else if r.found {
-                *slot = r.hit();
+        for (k, (slot, &d)) in out.iter_mut().zip(dirs).take(LANES).enumerate() {
+            if lanes.searching(k)
+                && let Some(dist) = reached
+            {
+                // Nothing nearer is left to find: the ray goes on alone from there.
+                let t_from =
+                    if lanes.along[k] > 0.0 { ((dist - SLACK_M) / lanes.along[k]).max(0.0) } else { 0.0 };
+                *slot = self.cast_from(o, d, t_from, t_max);
+            } else {
+                match lanes.win[k] {
+                    // An idle lane, or a ray whose stretch ended before the ground: `out` holds its answer.
+                    WIN_NONE => {}
+                    WIN_GROUND => *slot = Some((lanes.best[k], Class::Ground)),
+                    i => *slot = self.prims.get(i as usize).map(|p| (lanes.best[k], p.class)),
+                }
             }
         }
     }
@@ -119,113 +252,89 @@ impl Scene {
         }
         // Flat ground: the crossing `Scene::cast` finds, in or out of the grid.
         let t_ground = -o[2] / d[2];
-        let ground = t_ground >= t_lo && t_ground <= t_hi;
-        Start::Search(Ray {
-            d,
-            u: [d[0] / horizontal, d[1] / horizontal],
-            horizontal,
-            slope: d[2] / horizontal,
-            t_lo,
-            best: if ground { t_ground } else { t_hi },
-            class: Class::Ground,
-            found: ground,
-            searching: true,
-        })
+        if t_ground >= t_lo && t_ground <= t_hi {
+            Start::Search { t_lo, t_hi: t_ground, ground: true, horizontal }
+        } else {
+            Start::Search { t_lo, t_hi, ground: false, horizontal }
+        }
     }
 
-    /// Visits the wedge's cells in order of `ρ_min`, band by band, until no ray searches or the packet's
-    /// reach is passed. True when every ray's answer is final.
-    fn walk(&self, o: [f32; 3], wedge: &Wedge, rays: &mut [Ray; LANES], scratch: &mut Scratch) -> bool {
+    /// The walk's axis and wedge for the searching lanes (unit horizontal directions `units`, mean
+    /// direction `centre`); `None` when the packet fans wider than `MIN_COS`.
+    fn plan(&self, lanes: &mut Lanes, units: &[[f32; 2]; LANES], centre: [f32; 2]) -> Option<Walk> {
+        let (a, b) = if centre[0].abs() >= centre[1].abs() { (0, 1) } else { (1, 0) };
+        let sign = if centre[a] >= 0.0 { 1f32 } else { -1.0 };
+        let (mut left, mut right) = (f32::INFINITY, f32::NEG_INFINITY);
+        let (mut steep, mut flat) = (f32::INFINITY, f32::NEG_INFINITY);
+        for k in 0..LANES {
+            if !lanes.searching(k) {
+                continue;
+            }
+            let u = units[k];
+            if centre[0] * u[0] + centre[1] * u[1] < MIN_COS {
+                return None;
+            }
+            // Within 25° of a direction within 45° of the axis: |u[a]| > sin 20°.
+            let slope = u[b] / u[a];
+            (left, right) = (left.min(slope), right.max(slope));
+            let d = [lanes.dx[k], lanes.dy[k]];
+            lanes.along[k] = d[a].abs();
+            let descent = lanes.dz[k] / lanes.along[k];
+            (steep, flat) = (steep.min(descent), flat.max(descent));
+        }
+        lanes.settle();
+        Some(Walk { a, b, sign, slopes: (left, right), steep, flat })
+    }
+
+    /// Visits the strips outwards and, in each, the wedge's cells, until no ray searches. `None` when
+    /// every ray's answer is final, or the distance along the axis up to which the walk searched when it
+    /// stopped at the packet's reach.
+    fn walk(&self, o: [f32; 3], w: &Walk, lanes: &mut Lanes) -> Option<f32> {
+        let (a, b) = (w.a, w.b);
         let cell = self.cell_m;
-        let diag = cell * std::f32::consts::SQRT_2;
-        // Nothing lies above top_z: start with the cells that reach where the first ray dips under it.
-        let mut rho_a = rays
-            .iter()
-            .filter(|r| r.searching)
-            .map(|r| (self.top_z - o[2]) / r.slope - diag)
-            .fold(f32::INFINITY, f32::min)
-            .max(0.0);
-        // Beyond the farthest grid corner there are no cells.
-        let (gx1, gy1) = (self.x0 + self.nx as f32 * cell, self.y0 + self.ny as f32 * cell);
-        let fx = (self.x0 - o[0]).abs().max((gx1 - o[0]).abs());
-        let fy = (self.y0 - o[1]).abs().max((gy1 - o[1]).abs());
-        let grid_far = (fx * fx + fy * fy).sqrt();
-        while rho_a < grid_far {
-            if rho_a >= REACH_M {
-                return false;
+        let (origin, n) = ([self.x0, self.y0], [self.nx, self.ny]);
+        // Cell index of a coordinate, clamped to [-1, n]: `as` truncates towards zero, hence the shift.
+        let index =
+            |v: f32, k: usize| (((v - origin[k]) * self.inv_cell + 1.0).max(0.0) as i32 - 1).min(n[k]);
+        // Nothing lies above top_z: start at the strip where the first ray dips under it.
+        let start = (0..LANES)
+            .filter(|&k| lanes.searching(k))
+            .map(|k| lanes.lo[k] * lanes.along[k])
+            .fold(f32::INFINITY, f32::min);
+        let mut s = index(o[a] + w.sign * start, a);
+        let step = if w.sign > 0.0 { 1 } else { -1 };
+        while (0..n[a]).contains(&s) {
+            let e0 = origin[a] + s as f32 * cell;
+            let (near, far) = if w.sign > 0.0 { (e0, e0 + cell) } else { (e0 + cell, e0) };
+            let (d_near, d_far) = ((w.sign * (near - o[a])).max(0.0), (w.sign * (far - o[a])).max(0.0));
+            if !lanes.retire(d_near) {
+                return None;
             }
-            let rho_b = rho_a + BAND_M;
-            self.band_cells(o, wedge, rho_a, rho_b, diag, &mut scratch.cells);
-            for &(rho_min, c) in &scratch.cells {
-                if !retire(rays, rho_min) {
-                    return true;
-                }
-                self.visit(o, rays, c as usize, rho_min, rho_min + diag);
+            if d_near >= REACH_M {
+                return Some(d_near);
             }
-            if !retire(rays, rho_b) {
-                return true;
+            // Across the strip the wedge lies between its boundary rays at the strip's edges.
+            let (sn, sf) = (w.sign * d_near, w.sign * d_far);
+            let ends = [sn * w.slopes.0, sf * w.slopes.0, sn * w.slopes.1, sf * w.slopes.1];
+            let (lo, hi) =
+                ends.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(l, h), &v| (l.min(v), h.max(v)));
+            let t0 = index(o[b] + lo - SLACK_M, b).max(0);
+            let t1 = index(o[b] + hi + SLACK_M, b).min(n[b] - 1);
+            // The rays descend: across the strip they lie between their heights at its edges.
+            let z = (o[2] + w.steep * d_far, o[2] + w.flat * d_near);
+            for t in t0..=t1 {
+                let (i, j) = if a == 0 { (s, t) } else { (t, s) };
+                self.visit(o, lanes, (j * self.nx + i) as usize, z);
             }
-            rho_a = rho_b;
+            s += step;
         }
-        true
+        None
     }
 
-    /// The cells of the wedge whose `ρ_min` lies in `[rho_a, rho_b)`, sorted by it, into `cells`.
-    fn band_cells(&self, o: [f32; 3], w: &Wedge, rho_a: f32, rho_b: f32, diag: f32, cells: &mut Vec<(f32, u32)>) {
-        cells.clear();
-        let cell = self.cell_m;
-        // Bounding box of the wedge between rho_a and rho_b + diag (a cell whose ρ_min is in the band
-        // reaches at most that far): the four corners and the apex of the outer arc's tangents.
-        let r1 = rho_b + diag;
-        let outer = r1 / w.cos_half;
-        let pts = [
-            [rho_a * w.left[0], rho_a * w.left[1]],
-            [rho_a * w.right[0], rho_a * w.right[1]],
-            [r1 * w.left[0], r1 * w.left[1]],
-            [r1 * w.right[0], r1 * w.right[1]],
-            [outer * w.centre[0], outer * w.centre[1]],
-        ];
-        let (mut lo, mut hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
-        for p in pts {
-            for k in 0..2 {
-                lo[k] = lo[k].min(p[k]);
-                hi[k] = hi[k].max(p[k]);
-            }
-        }
-        let index = |v: f32, origin: f32, n: i32| ((v - origin) * self.inv_cell).floor().clamp(-1.0, n as f32) as i32;
-        let i0 = index(o[0] + lo[0] - SLACK_M, self.x0, self.nx).max(0);
-        let i1 = index(o[0] + hi[0] + SLACK_M, self.x0, self.nx).min(self.nx - 1);
-        let j0 = index(o[1] + lo[1] - SLACK_M, self.y0, self.ny).max(0);
-        let j1 = index(o[1] + hi[1] + SLACK_M, self.y0, self.ny).min(self.ny - 1);
-        let half = 0.5 * cell;
-        for j in j0..=j1 {
-            let cy0 = self.y0 + j as f32 * cell;
-            let dy = (cy0 - o[1]).max(0.0).max(o[1] - (cy0 + cell));
-            for i in i0..=i1 {
-                let cx0 = self.x0 + i as f32 * cell;
-                let dx = (cx0 - o[0]).max(0.0).max(o[0] - (cx0 + cell));
-                let rho_min = (dx * dx + dy * dy).sqrt();
-                if rho_min < rho_a || rho_min >= rho_b {
-                    continue;
-                }
-                let centre = [cx0 + half - o[0], cy0 + half - o[1]];
-                if w.touches(centre, half) {
-                    cells.push((rho_min, (j * self.nx + i) as u32));
-                }
-            }
-        }
-        cells.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-    }
-
-    /// Tests the primitives of cell `c` (ground-plane distances `rho_min..rho_max` from the sensor) at
-    /// the searching rays' heights against every searching ray.
-    fn visit(&self, o: [f32; 3], rays: &mut [Ray; LANES], c: usize, rho_min: f32, rho_max: f32) {
-        // The rays descend: over the cell they lie between their heights at rho_max and rho_min.
-        let (mut z_low, mut z_high) = (f32::INFINITY, f32::NEG_INFINITY);
-        for r in rays.iter().filter(|r| r.searching) {
-            z_low = z_low.min(o[2] + r.slope * rho_max);
-            z_high = z_high.max(o[2] + r.slope * rho_min);
-        }
+    /// Tests the primitives of cell `c` that reach into the rays' height range `(z_low, z_high)` over
+    /// it against every searching ray.
+    #[inline]
+    fn visit(&self, o: [f32; 3], lanes: &mut Lanes, c: usize, (z_low, z_high): (f32, f32)) {
         match self.heights.get(c) {
             Some(&h) if z_low <= h => {}
             _ => return,
@@ -239,103 +348,28 @@ impl Scene {
             if r.z_min > z_high {
                 continue;
             }
-            if let Some(p) = prims.get(r.prim as usize) {
-                test(p, o, rays);
+            let Some(p) = prims.get(r.prim as usize) else { continue };
+            match p.shape {
+                Shape::Patch { o: po, n, ua, wa, ellipse: true } => {
+                    lanes.patch::<true>(o, po, n, ua, wa, r.prim)
+                }
+                Shape::Patch { o: po, n, ua, wa, ellipse: false } => {
+                    lanes.patch::<false>(o, po, n, ua, wa, r.prim)
+                }
+                // Stalks and weed clumps are few: one lane at a time.
+                _ => {
+                    for k in 0..LANES {
+                        let d = [lanes.dx[k], lanes.dy[k], lanes.dz[k]];
+                        if lanes.searching(k)
+                            && let Some(t) = p.intersect(o, d, lanes.lo[k], lanes.best[k])
+                        {
+                            (lanes.best[k], lanes.win[k]) = (t, r.prim);
+                            lanes.settle();
+                        }
+                    }
+                }
             }
         }
-    }
-}
-
-/// Tests one primitive against every searching ray, keeping each ray's nearest hit.
-#[inline]
-fn test(p: &Prim, o: [f32; 3], rays: &mut [Ray; LANES]) {
-    for r in rays.iter_mut().filter(|r| r.searching) {
-        if let Some(t) = p.intersect(o, r.d, r.t_lo, r.best) {
-            r.best = t;
-            r.class = p.class;
-            r.found = true;
-        }
-    }
-}
-
-/// Stops the rays whose best hit (or end) lies nearer (ground plane) than `rho`: no cell from there on
-/// can hold a nearer hit. False when no ray searches any more.
-#[inline]
-fn retire(rays: &mut [Ray; LANES], rho: f32) -> bool {
-    let mut any = false;
-    for r in rays.iter_mut() {
-        r.searching &= r.best * r.horizontal >= rho - SLACK_M;
-        any |= r.searching;
-    }
-    any
-}
-
-/// How a ray enters a packet.
-enum Start {
-    /// Its answer is known already.
-    Done(Option<(f32, Class)>),
-    /// The packet does not handle it.
-    Alone,
-    /// It searches with the packet.
-    Search(Ray),
-}
-
-impl Ray {
-    /// A lane without a ray.
-    const IDLE: Self = Self {
-        d: [0.0; 3],
-        u: [0.0; 2],
-        horizontal: 0.0,
-        slope: 0.0,
-        t_lo: 0.0,
-        best: 0.0,
-        class: Class::Ground,
-        found: false,
-        searching: false,
-    };
-
-    fn hit(&self) -> Option<(f32, Class)> {
-        self.found.then_some((self.best, self.class))
-    }
-}
-
-/// The wedge a packet's rays span seen from above, apex at the sensor.
-#[derive(Debug, Clone, Copy)]
-struct Wedge {
-    centre: [f32; 2],
-    /// The extreme rays' unit directions, left (counter-clockwise) and right of the centre.
-    left: [f32; 2],
-    right: [f32; 2],
-    cos_half: f32,
-}
-
-impl Wedge {
-    /// The wedge around `centre` holding every direction of `dirs`; `None` when wider than `MIN_COS`.
-    fn around(centre: [f32; 2], dirs: impl Iterator<Item = [f32; 2]>) -> Option<Self> {
-        let (mut left, mut right) = ((0f32, centre), (0f32, centre));
-        let mut cos_half = 1f32;
-        for u in dirs {
-            let side = centre[0] * u[1] - centre[1] * u[0];
-            let cos = centre[0] * u[0] + centre[1] * u[1];
-            cos_half = cos_half.min(cos);
-            if side > left.0 {
-                left = (side, u);
-            }
-            if side < right.0 {
-                right = (side, u);
-            }
-        }
-        (cos_half >= MIN_COS).then_some(Self { centre, left: left.1, right: right.1, cos_half })
-    }
-
-    /// Whether the square of half-side `half` centred at `c` (relative to the apex) may meet the
-    /// wedge: it reaches into the half-planes left of the right ray, right of the left ray, and ahead.
-    fn touches(&self, c: [f32; 2], half: f32) -> bool {
-        // For a unit normal n, the square's farthest reach along n is n·c + half·(|nx| + |ny|).
-        let reach = |n: [f32; 2]| n[0] * c[0] + n[1] * c[1] + half * (n[0].abs() + n[1].abs()) >= -SLACK_M;
-        let (l, r) = (self.left, self.right);
-        // Left of the right ray: normal (-r.y, r.x); right of the left ray: normal (l.y, -l.x).
-        reach([-r[1], r[0]]) && reach([l[1], -l[0]]) && reach(self.centre)
     }
 }
 
@@ -367,7 +401,6 @@ mod tests {
     fn packets_match_single_rays(config: FieldConfig, poses: &[(f32, f32, f32)], min_crop_hits: usize) {
         let field = Field::generate(&config, 3).unwrap();
         let s = field.scene();
-        let mut scratch = Scratch::default();
         let (mut crop, mut mismatches) = (0, Vec::new());
         for &(x, y, yaw) in poses {
             let o = [x, y, 1.5];
@@ -376,7 +409,7 @@ mod tests {
                 let rays: Vec<[f32; 3]> = dirs.iter().skip(beam).step_by(16).copied().collect();
                 for chunk in rays.chunks(LANES) {
                     let mut out = [None; LANES];
-                    s.cast_packet(o, chunk, 100.0, &mut out[..chunk.len()], &mut scratch);
+                    s.cast_packet(o, chunk, 100.0, &mut out[..chunk.len()]);
                     for (d, packet) in chunk.iter().zip(out) {
                         let alone = s.cast(o, *d, 100.0);
                         let same = match (packet, alone) {
