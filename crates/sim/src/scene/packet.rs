@@ -51,6 +51,10 @@ struct Lanes {
     win: [u32; LANES],
     /// |component of the direction along the walk's axis|: the ray advances `t · along` along it.
     along: [f32; LANES],
+    /// Per metre along the axis: the ray's sideways drift (signed, along the other axis) and its
+    /// descent (negative).
+    drift: [f32; LANES],
+    descent: [f32; LANES],
     /// The nearest distance along the axis of a searching lane's `best`: before it no lane stops.
     settled: f32,
 }
@@ -64,6 +68,8 @@ impl Lanes {
         best: [0.0; LANES],
         win: [WIN_NONE; LANES],
         along: [0.0; LANES],
+        drift: [0.0; LANES],
+        descent: [0.0; LANES],
         settled: f32::INFINITY,
     };
 
@@ -84,11 +90,11 @@ impl Lanes {
     }
 
     /// Stops the rays whose best hit (or end) lies before `dist` along the axis: no strip from there on
-    /// can hold a nearer hit. False when no ray searches any more.
+    /// can hold a nearer hit. Whether any stopped.
     #[inline]
     fn retire(&mut self, dist: f32) -> bool {
         if dist - SLACK_M <= self.settled {
-            return true;
+            return false;
         }
         for k in 0..LANES {
             if self.best[k] * self.along[k] < dist - SLACK_M {
@@ -96,7 +102,17 @@ impl Lanes {
             }
         }
         self.settle();
-        self.settled < f32::INFINITY
+        true
+    }
+
+    /// The searching rays' extreme drifts and descents: `(left, right, steep, flat)`; `None` when no
+    /// ray searches.
+    fn spread(&self) -> Option<(f32, f32, f32, f32)> {
+        let mut b = (f32::INFINITY, f32::NEG_INFINITY, f32::INFINITY, f32::NEG_INFINITY);
+        for k in (0..LANES).filter(|&k| self.searching(k)) {
+            b = (b.0.min(self.drift[k]), b.1.max(self.drift[k]), b.2.min(self.descent[k]), b.3.max(self.descent[k]));
+        }
+        (b.0 <= b.1).then_some(b)
     }
 
     /// A flat patch (primitive `index`) against every lane, with `Prim::intersect`'s arithmetic
@@ -168,11 +184,6 @@ struct Walk {
     b: usize,
     /// +1 or -1: the direction the rays go along `a`.
     sign: f32,
-    /// The wedge's boundary rays as slopes `db/da`.
-    slopes: (f32, f32),
-    /// The steepest and the flattest descent of a ray per metre along `a` (both negative).
-    steep: f32,
-    flat: f32,
 }
 
 impl Scene {
@@ -264,26 +275,20 @@ impl Scene {
     fn plan(&self, lanes: &mut Lanes, units: &[[f32; 2]; LANES], centre: [f32; 2]) -> Option<Walk> {
         let (a, b) = if centre[0].abs() >= centre[1].abs() { (0, 1) } else { (1, 0) };
         let sign = if centre[a] >= 0.0 { 1f32 } else { -1.0 };
-        let (mut left, mut right) = (f32::INFINITY, f32::NEG_INFINITY);
-        let (mut steep, mut flat) = (f32::INFINITY, f32::NEG_INFINITY);
-        for k in 0..LANES {
+        for (k, u) in units.iter().enumerate() {
             if !lanes.searching(k) {
                 continue;
             }
-            let u = units[k];
             if centre[0] * u[0] + centre[1] * u[1] < MIN_COS {
                 return None;
             }
             // Within 25° of a direction within 45° of the axis: |u[a]| > sin 20°.
-            let slope = u[b] / u[a];
-            (left, right) = (left.min(slope), right.max(slope));
-            let d = [lanes.dx[k], lanes.dy[k]];
-            lanes.along[k] = d[a].abs();
-            let descent = lanes.dz[k] / lanes.along[k];
-            (steep, flat) = (steep.min(descent), flat.max(descent));
+            lanes.drift[k] = sign * u[b] / u[a];
+            lanes.along[k] = [lanes.dx[k], lanes.dy[k]][a].abs();
+            lanes.descent[k] = lanes.dz[k] / lanes.along[k];
         }
         lanes.settle();
-        Some(Walk { a, b, sign, slopes: (left, right), steep, flat })
+        Some(Walk { a, b, sign })
     }
 
     /// Visits the strips outwards and, in each, the wedge's cells, until no ray searches. `None` when
@@ -303,25 +308,30 @@ impl Scene {
             .fold(f32::INFINITY, f32::min);
         let mut s = index(o[a] + w.sign * start, a);
         let step = if w.sign > 0.0 { 1 } else { -1 };
+        // The searching rays' extreme drifts and descents: the wedge narrows as rays stop.
+        let Some(mut spread) = lanes.spread() else { return None };
         while (0..n[a]).contains(&s) {
             let e0 = origin[a] + s as f32 * cell;
             let (near, far) = if w.sign > 0.0 { (e0, e0 + cell) } else { (e0 + cell, e0) };
             let (d_near, d_far) = ((w.sign * (near - o[a])).max(0.0), (w.sign * (far - o[a])).max(0.0));
-            if !lanes.retire(d_near) {
-                return None;
+            if lanes.retire(d_near) {
+                match lanes.spread() {
+                    Some(narrower) => spread = narrower,
+                    None => return None,
+                }
             }
             if d_near >= REACH_M {
                 return Some(d_near);
             }
             // Across the strip the wedge lies between its boundary rays at the strip's edges.
-            let (sn, sf) = (w.sign * d_near, w.sign * d_far);
-            let ends = [sn * w.slopes.0, sf * w.slopes.0, sn * w.slopes.1, sf * w.slopes.1];
+            let (left, right, steep, flat) = spread;
+            let ends = [d_near * left, d_far * left, d_near * right, d_far * right];
             let (lo, hi) =
                 ends.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(l, h), &v| (l.min(v), h.max(v)));
             let t0 = index(o[b] + lo - SLACK_M, b).max(0);
             let t1 = index(o[b] + hi + SLACK_M, b).min(n[b] - 1);
             // The rays descend: across the strip they lie between their heights at its edges.
-            let z = (o[2] + w.steep * d_far, o[2] + w.flat * d_near);
+            let z = (o[2] + steep * d_far, o[2] + flat * d_near);
             for t in t0..=t1 {
                 let (i, j) = if a == 0 { (s, t) } else { (t, s) };
                 self.visit(o, lanes, (j * self.nx + i) as usize, z);
