@@ -12,6 +12,11 @@
 //! - only hits inside the current cell count (a hit farther on is found in the cell it lies in), and
 //!   the first one ends the ray.
 //!
+//! [`Scene::cast`] casts one ray that way. The LiDAR casts beam packets instead (`packet`: a laser's
+//! rays at 8 consecutive azimuths walk the grid together and test each primitive on all 8 at once),
+//! which return exactly what `cast` returns ray by ray; `cast` stays the path of the rays packets do
+//! not suit and the reference the packet tests compare against.
+//!
 //! Primitives are cheap to intersect: flat patches (rectangles and ellipses) for leaves, vertical
 //! cylinders for stalks, axis-aligned spheroids for weed clumps. All geometry is `f32` in the field frame
 //! (metres). A test checks the grid against a brute-force caster (every primitive, no grid).

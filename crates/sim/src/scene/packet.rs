@@ -57,6 +57,10 @@ struct Lanes {
     descent: [f32; LANES],
     /// The nearest distance along the axis of a searching lane's `best`: before it no lane stops.
     settled: f32,
+    /// The ray (index into the packet) in each lane: lanes are compacted as rays stop.
+    ray: [usize; LANES],
+    /// Lanes the primitive tests cover: all, or the first half once every searching ray is there.
+    width: usize,
 }
 
 impl Lanes {
@@ -71,6 +75,16 @@ impl Lanes {
         drift: [0.0; LANES],
         descent: [0.0; LANES],
         settled: f32::INFINITY,
+        ray: {
+            let mut ray = [0; LANES];
+            let mut k = 0;
+            while k < LANES {
+                ray[k] = k;
+                k += 1;
+            }
+            ray
+        },
+        width: LANES,
     };
 
     #[inline]
@@ -102,7 +116,36 @@ impl Lanes {
             }
         }
         self.settle();
+        if self.width == LANES && (0..LANES).filter(|&k| self.searching(k)).count() <= LANES / 2 {
+            self.compact();
+        }
         true
+    }
+
+    /// Moves the searching rays to the first half of the lanes, which the tests then cover alone
+    /// (half the vector work). Stopped rays keep their answers in the other lanes.
+    fn compact(&mut self) {
+        let mut front = 0;
+        for k in 0..LANES {
+            if self.searching(k) {
+                self.swap(front, k);
+                front += 1;
+            }
+        }
+        self.width = LANES / 2;
+    }
+
+    fn swap(&mut self, i: usize, j: usize) {
+        self.dx.swap(i, j);
+        self.dy.swap(i, j);
+        self.dz.swap(i, j);
+        self.lo.swap(i, j);
+        self.best.swap(i, j);
+        self.win.swap(i, j);
+        self.along.swap(i, j);
+        self.drift.swap(i, j);
+        self.descent.swap(i, j);
+        self.ray.swap(i, j);
     }
 
     /// The searching rays' extreme drifts and descents: `(left, right, steep, flat)`; `None` when no
@@ -110,7 +153,12 @@ impl Lanes {
     fn spread(&self) -> Option<(f32, f32, f32, f32)> {
         let mut b = (f32::INFINITY, f32::NEG_INFINITY, f32::INFINITY, f32::NEG_INFINITY);
         for k in (0..LANES).filter(|&k| self.searching(k)) {
-            b = (b.0.min(self.drift[k]), b.1.max(self.drift[k]), b.2.min(self.descent[k]), b.3.max(self.descent[k]));
+            b = (
+                b.0.min(self.drift[k]),
+                b.1.max(self.drift[k]),
+                b.2.min(self.descent[k]),
+                b.3.max(self.descent[k]),
+            );
         }
         (b.0 <= b.1).then_some(b)
     }
@@ -119,7 +167,7 @@ impl Lanes {
     /// operation for operation.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    fn patch<const ELLIPSE: bool>(
+    fn patch<const ELLIPSE: bool, const WIDTH: usize>(
         &mut self,
         o: [f32; 3],
         po: [f32; 3],
@@ -131,8 +179,8 @@ impl Lanes {
         let num = n[0] * (po[0] - o[0]) + n[1] * (po[1] - o[1]) + n[2] * (po[2] - o[2]);
         // Two passes over plain arrays with the hit as a bit mask: this shape the compiler vectorises
         // (`if`/`&&` per lane, or bool arrays, keep it scalar).
-        let (mut t, mut mask) = ([0f32; LANES], [0u32; LANES]);
-        for k in 0..LANES {
+        let (mut t, mut mask) = ([0f32; WIDTH], [0u32; WIDTH]);
+        for k in 0..WIDTH {
             let (dx, dy, dz) = (self.dx[k], self.dy[k], self.dz[k]);
             let denom = n[0] * dx + n[1] * dy + n[2] * dz;
             let tk = num / denom;
@@ -154,7 +202,7 @@ impl Lanes {
             t[k] = tk;
         }
         let mut any = 0;
-        for k in 0..LANES {
+        for k in 0..WIDTH {
             let m = mask[k];
             self.best[k] = f32::from_bits((t[k].to_bits() & m) | (self.best[k].to_bits() & !m));
             self.win[k] = (index & m) | (self.win[k] & !m);
@@ -174,6 +222,14 @@ enum Start {
     Alone,
     /// It searches with the packet from `t_lo`; its stretch ends at `t_hi`, on the ground if `ground`.
     Search { t_lo: f32, t_hi: f32, ground: bool, horizontal: f32 },
+}
+
+/// How far a walk went.
+enum Searched {
+    /// Every ray's answer is final.
+    All,
+    /// The rays still searching may hit nothing nearer than this distance along the walk's axis.
+    UpTo(f32),
 }
 
 /// The geometry of a packet's walk, seen from above.
@@ -220,13 +276,16 @@ impl Scene {
         }
         let walk = self.plan(&mut lanes, &units, [mean[0] / norm, mean[1] / norm]);
         // Everything the walk has not settled lies at least this far along its axis.
-        let reached = match walk {
+        let searched = match walk {
             Some(w) => self.walk(o, &w, &mut lanes),
-            None => Some(0.0),
+            None => Searched::UpTo(0.0),
         };
-        for (k, (slot, &d)) in out.iter_mut().zip(dirs).take(LANES).enumerate() {
+        for k in 0..LANES {
+            let (Some(slot), Some(&d)) = (out.get_mut(lanes.ray[k]), dirs.get(lanes.ray[k])) else {
+                continue;
+            };
             if lanes.searching(k)
-                && let Some(dist) = reached
+                && let Searched::UpTo(dist) = searched
             {
                 // Nothing nearer is left to find: the ray goes on alone from there.
                 let t_from =
@@ -246,7 +305,9 @@ impl Scene {
     /// How a ray enters a packet.
     fn packet_ray(&self, o: [f32; 3], d: [f32; 3], t_max: f32) -> Start {
         let horizontal = (d[0] * d[0] + d[1] * d[1]).sqrt();
-        if !self.relief.is_flat() || !(d[2] < 0.0) || !(horizontal >= MIN_HORIZONTAL) {
+        // Written so that NaN directions go alone too.
+        let descends = d[2] < 0.0 && horizontal >= MIN_HORIZONTAL;
+        if !self.relief.is_flat() || !descends {
             // A rising ray from above everything meets nothing; the packet does not handle the rest.
             if d[2] >= 0.0 && o[2] > self.top_z {
                 return Start::Done(None);
@@ -258,7 +319,7 @@ impl Scene {
         let tb = (self.bottom_z - o[2]) / d[2];
         let t_lo = 0f32.max(ta.min(tb));
         let t_hi = t_max.min(ta.max(tb));
-        if !(t_lo < t_hi) {
+        if t_lo >= t_hi || t_lo.is_nan() || t_hi.is_nan() {
             return Start::Done(None);
         }
         // Flat ground: the crossing `Scene::cast` finds, in or out of the grid.
@@ -291,10 +352,9 @@ impl Scene {
         Some(Walk { a, b, sign })
     }
 
-    /// Visits the strips outwards and, in each, the wedge's cells, until no ray searches. `None` when
-    /// every ray's answer is final, or the distance along the axis up to which the walk searched when it
-    /// stopped at the packet's reach.
-    fn walk(&self, o: [f32; 3], w: &Walk, lanes: &mut Lanes) -> Option<f32> {
+    /// Visits the strips outwards and, in each, the wedge's cells, until no ray searches or the packet's
+    /// reach is passed.
+    fn walk(&self, o: [f32; 3], w: &Walk, lanes: &mut Lanes) -> Searched {
         let (a, b) = (w.a, w.b);
         let cell = self.cell_m;
         let (origin, n) = ([self.x0, self.y0], [self.nx, self.ny]);
@@ -309,7 +369,7 @@ impl Scene {
         let mut s = index(o[a] + w.sign * start, a);
         let step = if w.sign > 0.0 { 1 } else { -1 };
         // The searching rays' extreme drifts and descents: the wedge narrows as rays stop.
-        let Some(mut spread) = lanes.spread() else { return None };
+        let Some(mut spread) = lanes.spread() else { return Searched::All };
         while (0..n[a]).contains(&s) {
             let e0 = origin[a] + s as f32 * cell;
             let (near, far) = if w.sign > 0.0 { (e0, e0 + cell) } else { (e0 + cell, e0) };
@@ -317,11 +377,11 @@ impl Scene {
             if lanes.retire(d_near) {
                 match lanes.spread() {
                     Some(narrower) => spread = narrower,
-                    None => return None,
+                    None => return Searched::All,
                 }
             }
             if d_near >= REACH_M {
-                return Some(d_near);
+                return Searched::UpTo(d_near);
             }
             // Across the strip the wedge lies between its boundary rays at the strip's edges.
             let (left, right, steep, flat) = spread;
@@ -338,7 +398,7 @@ impl Scene {
             }
             s += step;
         }
-        None
+        Searched::All
     }
 
     /// Tests the primitives of cell `c` that reach into the rays' height range `(z_low, z_high)` over
@@ -361,10 +421,18 @@ impl Scene {
             let Some(p) = prims.get(r.prim as usize) else { continue };
             match p.shape {
                 Shape::Patch { o: po, n, ua, wa, ellipse: true } => {
-                    lanes.patch::<true>(o, po, n, ua, wa, r.prim)
+                    if lanes.width == LANES {
+                        lanes.patch::<true, LANES>(o, po, n, ua, wa, r.prim)
+                    } else {
+                        lanes.patch::<true, { LANES / 2 }>(o, po, n, ua, wa, r.prim)
+                    }
                 }
                 Shape::Patch { o: po, n, ua, wa, ellipse: false } => {
-                    lanes.patch::<false>(o, po, n, ua, wa, r.prim)
+                    if lanes.width == LANES {
+                        lanes.patch::<false, LANES>(o, po, n, ua, wa, r.prim)
+                    } else {
+                        lanes.patch::<false, { LANES / 2 }>(o, po, n, ua, wa, r.prim)
+                    }
                 }
                 // Stalks and weed clumps are few: one lane at a time.
                 _ => {
@@ -464,5 +532,19 @@ mod tests {
             ..FieldConfig::default()
         };
         packets_match_single_rays(config, &[(4.0, 2.625, 0.0), (-1.0, 3.0, 0.8)], 2_000);
+    }
+
+    #[test]
+    fn packets_over_relief_fall_back_to_single_rays() {
+        let config = FieldConfig {
+            crop: Crop::Corn,
+            stage: Stage::Young,
+            rows: 4,
+            length_m: 6.0,
+            relief_m: 0.15,
+            relief_wavelength_m: 5.0,
+            ..FieldConfig::default()
+        };
+        packets_match_single_rays(config, &[(3.0, 1.125, 0.2)], 500);
     }
 }
