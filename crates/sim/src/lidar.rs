@@ -211,9 +211,10 @@ impl Lidar {
 
     /// Fires columns `first..last` (clamped to the revolution) from `body` and appends their returns.
     ///
-    /// Each laser's rays of up to [`PACKET_LANES`] consecutive columns are cast together as one packet
-    /// (see `scene::packet`); the returns and their noise draws still follow column by column, beam by
-    /// beam.
+    /// Each laser's rays of up to 8 consecutive columns are cast together as one packet (they share the
+    /// walk through the field's grid and are tested against each primitive at once); the returns are
+    /// exactly those of casting ray by ray, and they and their noise draws follow column by column, beam
+    /// by beam, as before.
     pub fn cast_columns(
         &mut self,
         field: &Field,

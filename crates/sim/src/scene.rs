@@ -141,6 +141,7 @@ impl Prim {
             }
             Shape::Cylinder { cx, cy, r2, z0, z1 } => {
                 let (ox, oy) = (o[0] - cx, o[1] - cy);
+                let mut hit = None;
                 let a = d[0] * d[0] + d[1] * d[1];
                 if a > 1e-12 {
                     let b = ox * d[0] + oy * d[1];
@@ -150,21 +151,23 @@ impl Prim {
                         let t = (-b - disc.sqrt()) / a;
                         let z = o[2] + t * d[2];
                         if t > t_min && t < t_best && z >= z0 && z <= z1 {
-                            return Some(t);
+                            hit = Some(t);
                         }
                     }
                 }
-                // The flat top, seen from above.
+                // The flat top, seen from above. At the rim, f32 rounding can put it a hair before the
+                // wall: the nearer of the two counts, so that the answer does not depend on `t_best`
+                // (beam packets test a primitive again with a nearer `t_best`).
                 if d[2] < 0.0 {
                     let t = (z1 - o[2]) / d[2];
-                    if t > t_min && t < t_best {
+                    if t > t_min && t < hit.unwrap_or(t_best) {
                         let (x, y) = (ox + t * d[0], oy + t * d[1]);
                         if x * x + y * y <= r2 {
-                            return Some(t);
+                            hit = Some(t);
                         }
                     }
                 }
-                None
+                hit
             }
             Shape::Spheroid { c, inv_r, inv_rz } => {
                 let oo = [(o[0] - c[0]) * inv_r, (o[1] - c[1]) * inv_r, (o[2] - c[2]) * inv_rz];
@@ -279,6 +282,9 @@ struct CellInfo {
 #[derive(Debug, Clone)]
 pub(crate) struct Scene {
     prims: Vec<Prim>,
+    /// Per primitive, its horizontal bounds `[x_min, y_min, x_max, y_max]` (field frame, m): beam
+    /// packets skip a primitive that lies beside their wedge without loading it.
+    footprints: Vec<[f32; 4]>,
     relief: Relief,
     /// Upper bound of the relief's slope |∇h| (numerical, with margin), for sphere tracing.
     relief_slope: f64,
@@ -411,8 +417,10 @@ impl Scene {
                 }
             }
         }
+        let footprints = prims.iter().map(|p| p.bounds()).map(|b| [b[0], b[1], b[3], b[4]]).collect();
         Self {
             prims,
+            footprints,
             relief,
             relief_slope,
             x0,

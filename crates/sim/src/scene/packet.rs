@@ -392,9 +392,11 @@ impl Scene {
             let t1 = index(o[b] + hi + SLACK_M, b).min(n[b] - 1);
             // The rays descend: across the strip they lie between their heights at its edges.
             let z = (o[2] + steep * d_far, o[2] + flat * d_near);
+            // A primitive can meet a ray in this strip only if it reaches into the wedge's width here.
+            let across = (b, o[b] + lo - SLACK_M, o[b] + hi + SLACK_M);
             for t in t0..=t1 {
                 let (i, j) = if a == 0 { (s, t) } else { (t, s) };
-                self.visit(o, lanes, (j * self.nx + i) as usize, z);
+                self.visit(o, lanes, (j * self.nx + i) as usize, z, across);
             }
             s += step;
         }
@@ -402,9 +404,16 @@ impl Scene {
     }
 
     /// Tests the primitives of cell `c` that reach into the rays' height range `(z_low, z_high)` over
-    /// it against every searching ray.
+    /// it and into their range `(lo, hi)` along axis `b` against every searching ray.
     #[inline]
-    fn visit(&self, o: [f32; 3], lanes: &mut Lanes, c: usize, (z_low, z_high): (f32, f32)) {
+    fn visit(
+        &self,
+        o: [f32; 3],
+        lanes: &mut Lanes,
+        c: usize,
+        (z_low, z_high): (f32, f32),
+        (b, lo, hi): (usize, f32, f32),
+    ) {
         match self.heights.get(c) {
             Some(&h) if z_low <= h => {}
             _ => return,
@@ -417,6 +426,10 @@ impl Scene {
             }
             if r.z_min > z_high {
                 continue;
+            }
+            match self.footprints.get(r.prim as usize) {
+                Some(f) if f[b] <= hi && f[b + 2] >= lo => {}
+                _ => continue,
             }
             let Some(p) = prims.get(r.prim as usize) else { continue };
             match p.shape {
