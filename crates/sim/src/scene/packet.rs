@@ -6,11 +6,13 @@
 //! Seen from above, the rays of a packet fan out in a thin wedge from the sensor. The walk cuts the grid
 //! into strips one cell wide across the wedge's main axis (x or y, whichever the wedge runs closer to)
 //! and visits them outwards; in each strip it visits the cells between the wedge's two boundary rays.
-//! Every primitive listed in a visited cell at the packet's height is tested against every ray still
-//! searching, with the same arithmetic as [`Scene::cast`]. A ray stops once its best hit lies before the
-//! next strip: a hit it has not found lies in a cell not yet visited, hence farther along the axis. So a
-//! packet returns what [`Scene::cast`] returns for each ray, bit for bit where the nearest hit is unique
-//! (tests compare whole revolutions; the scan hashes of `examples/raycast_cost.rs` are unchanged).
+//! Every primitive listed in a visited cell at the packet's height and reaching into the wedge's width
+//! there is tested against every ray still searching, with the same arithmetic as [`Scene::cast`]. A ray
+//! stops once its best hit lies before the next strip: a hit it has not found lies in a cell not yet
+//! visited, hence farther along the axis. So a packet returns what [`Scene::cast`] returns for each ray,
+//! bit for bit where the nearest hit is unique (the tests compare whole revolutions ray by ray). As rays
+//! stop, the wedge narrows to the rays still searching, and once they fit in half the lanes the tests
+//! run on that half only.
 //!
 //! Rays the wedge does not suit go to [`Scene::cast`]: rays that rise or are near vertical, relief (the
 //! packet takes the flat ground analytically), and packets fanning wider than ~25°; rays still searching
