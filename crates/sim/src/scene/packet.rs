@@ -25,7 +25,7 @@ use super::{Class, Scene, Shape};
 pub(crate) const LANES: usize = 8;
 
 /// Rays still searching this far from the sensor along the walk's axis continue alone, m.
-const REACH_M: f32 = 10.0;
+const REACH_M: f32 = 6.0;
 /// Slack of the strips' cell ranges and of the stopping rule, m: covers f32 rounding.
 const SLACK_M: f32 = 1e-3;
 /// Cosine of the widest angle a packet's ray may make with the packet's mean direction (25°).
