@@ -34,8 +34,9 @@
 //! time and are not quoted: CPU time per revolution (`examples/raycast_cost.rs`, 30 revolutions,
 //! median of 3 runs alternating the binaries before -> after): young corn 4.27 -> 2.72 ms, grown corn
 //! 5.67 -> 3.85 ms, young soybean 4.30 -> 3.34 ms, grown soybean 5.74 -> 4.91 ms, curved corn
-//! 4.64 -> 3.21 ms. Instructions per revolution hardly moved (callgrind, as above: 22.2M -> 20.8M,
-//! 27.7M -> 27.3M, 24.6M -> 23.6M, 30.6M -> 31.2M, 22.6M -> 21.2M): the gain is fewer memory stalls
+//! 4.64 -> 3.21 ms. Instructions per revolution hardly moved (callgrind, as above, with the 6 m reach
+//! of commit "packet: reach 6 m": 22.2M -> 20.4M, 27.7M -> 26.3M, 24.6M -> 23.2M, 30.6M -> 30.5M,
+//! 22.6M -> 20.8M): the gain is fewer memory stalls
 //! (a packet loads each cell's list and each primitive once for 8 rays) and packed arithmetic. Scans
 //! are bit for bit the same except where a ray grazes a stalk's rim: the cylinder test now returns the
 //! nearer of its wall and top hits (it returned the wall hit even when f32 rounding put the top a
