@@ -9,6 +9,10 @@
 //!     target/release/examples/raycast_cost 3 grown-corn      # Collected / 3 = instructions per revolution
 //! ```
 //!
+//! The casting is spread over `cast_packet` and `Scene::cast`/`cast_from` (rays packets leave alone):
+//! collect from `Lidar::cast_columns` down as above and read inclusive costs with
+//! `callgrind_annotate --inclusive=yes`.
+//!
 //! Arguments: revolutions (default 50), then scenario names (default: the five field scenarios).
 
 use std::hash::{DefaultHasher, Hasher};

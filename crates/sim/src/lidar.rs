@@ -27,7 +27,7 @@ use rand_distr::{Distribution, StandardNormal};
 use serde::{Deserialize, Serialize};
 
 use crate::field::Field;
-use crate::scene::Class;
+use crate::scene::{Class, PACKET_LANES};
 
 /// Parameters of the simulated LiDAR. Defaults: a Velodyne VLP-16 on the paper's mount.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -147,6 +147,8 @@ pub struct Lidar {
     columns: usize,
     mount: Isometry3<f64>,
     rng: ChaCha8Rng,
+    /// Hits of the columns being cast, column-major like `dirs` (allocated once: one packet's worth).
+    hits: Vec<Option<(f32, Class)>>,
 }
 
 impl Lidar {
@@ -177,6 +179,7 @@ impl Lidar {
             columns,
             mount: config.mount.isometry(),
             rng: ChaCha8Rng::seed_from_u64(seed),
+            hits: vec![None; PACKET_LANES * beams],
         })
     }
 
@@ -207,6 +210,11 @@ impl Lidar {
     }
 
     /// Fires columns `first..last` (clamped to the revolution) from `body` and appends their returns.
+    ///
+    /// Each laser's rays of up to 8 consecutive columns are cast together as one packet (they share the
+    /// walk through the field's grid and are tested against each primitive at once); the returns are
+    /// exactly those of casting ray by ray, and they and their noise draws follow column by column, beam
+    /// by beam, as before.
     pub fn cast_columns(
         &mut self,
         field: &Field,
@@ -215,45 +223,91 @@ impl Lidar {
         last: usize,
         out: &mut ScanBuffer,
     ) {
-        let sensor = body.isometry() * self.mount;
-        let r = sensor.rotation.to_rotation_matrix();
-        let m = r.matrix();
-        let rot = [
-            [m[(0, 0)] as f32, m[(0, 1)] as f32, m[(0, 2)] as f32],
-            [m[(1, 0)] as f32, m[(1, 1)] as f32, m[(1, 2)] as f32],
-            [m[(2, 0)] as f32, m[(2, 1)] as f32, m[(2, 2)] as f32],
-        ];
-        let t = sensor.translation.vector;
-        let origin = [t.x as f32, t.y as f32, t.z as f32];
+        let (origin, rot) = sensor_in_field(&(body.isometry() * self.mount));
         let beams = self.config.beams as usize;
-        let (min_r, max_r) = (self.config.min_range_m as f32, self.config.max_range_m as f32);
-        let sigma = self.config.range_noise_m as f32;
-        let dropout = self.config.dropout_probability;
+        let returns = Returns::of(&self.config);
         let scene = field.scene();
         let last = last.min(self.columns);
-        let rays = self.dirs.get(first * beams..last * beams).unwrap_or(&[]);
-        for ds in rays {
-            let d = [
-                rot[0][0] * ds[0] + rot[0][1] * ds[1] + rot[0][2] * ds[2],
-                rot[1][0] * ds[0] + rot[1][1] * ds[1] + rot[1][2] * ds[2],
-                rot[2][0] * ds[0] + rot[2][1] * ds[1] + rot[2][2] * ds[2],
-            ];
-            let Some((range, class)) = scene.cast(origin, d, max_r) else { continue };
-            if range < min_r {
-                continue;
+        let Self { dirs, hits, rng, .. } = self;
+        let rays = dirs.get(first * beams..last * beams).unwrap_or(&[]);
+        for columns in rays.chunks(PACKET_LANES * beams) {
+            for beam in 0..beams {
+                let mut world = [[0f32; 3]; PACKET_LANES];
+                let mut n = 0;
+                for (d, ds) in world.iter_mut().zip(columns.iter().skip(beam).step_by(beams)) {
+                    *d = rotate(&rot, *ds);
+                    n += 1;
+                }
+                let mut found = [None; PACKET_LANES];
+                scene.cast_packet(origin, &world[..n], returns.max_r, &mut found[..n]);
+                for (slot, hit) in hits.iter_mut().skip(beam).step_by(beams).zip(&found[..n]) {
+                    *slot = *hit;
+                }
             }
-            if dropout > 0.0 && self.rng.random_bool(dropout) {
-                continue;
+            for (hit, ds) in hits.iter().zip(columns) {
+                if let Some(hit) = *hit {
+                    returns.emit(rng, hit, *ds, out);
+                }
             }
-            let noise: f32 = StandardNormal.sample(&mut self.rng);
-            let measured = range + sigma * noise;
-            if !(measured >= min_r && measured <= max_r) {
-                continue;
-            }
-            out.points.push(Point3::new(measured * ds[0], measured * ds[1], measured * ds[2]));
-            out.classes.push(class);
         }
     }
+}
+
+/// What turns a true hit into a return: the blind zone, dropout, range noise and the maximum range.
+#[derive(Debug, Clone, Copy)]
+struct Returns {
+    min_r: f32,
+    max_r: f32,
+    sigma: f32,
+    dropout: f64,
+}
+
+impl Returns {
+    fn of(config: &LidarConfig) -> Self {
+        Self {
+            min_r: config.min_range_m as f32,
+            max_r: config.max_range_m as f32,
+            sigma: config.range_noise_m as f32,
+            dropout: config.dropout_probability,
+        }
+    }
+
+    /// Adds the noisy return of a ray along the sensor-frame direction `ds` whose true hit is `hit`, or
+    /// nothing when the return falls in the blind zone, drops out or leaves the range.
+    #[inline]
+    fn emit(&self, rng: &mut ChaCha8Rng, (range, class): (f32, Class), ds: [f32; 3], out: &mut ScanBuffer) {
+        if range < self.min_r {
+            return;
+        }
+        if self.dropout > 0.0 && rng.random_bool(self.dropout) {
+            return;
+        }
+        let noise: f32 = StandardNormal.sample(rng);
+        let measured = range + self.sigma * noise;
+        if !(measured >= self.min_r && measured <= self.max_r) {
+            return;
+        }
+        out.points.push(Point3::new(measured * ds[0], measured * ds[1], measured * ds[2]));
+        out.classes.push(class);
+    }
+}
+
+/// The sensor's origin and rotation (sensor -> field) in `f32`.
+fn sensor_in_field(sensor: &Isometry3<f64>) -> ([f32; 3], [[f32; 3]; 3]) {
+    let m = sensor.rotation.to_rotation_matrix().into_inner();
+    let rot = [
+        [m[(0, 0)] as f32, m[(0, 1)] as f32, m[(0, 2)] as f32],
+        [m[(1, 0)] as f32, m[(1, 1)] as f32, m[(1, 2)] as f32],
+        [m[(2, 0)] as f32, m[(2, 1)] as f32, m[(2, 2)] as f32],
+    ];
+    let t = sensor.translation.vector;
+    ([t.x as f32, t.y as f32, t.z as f32], rot)
+}
+
+/// `rot · v`.
+#[inline]
+fn rotate(rot: &[[f32; 3]; 3], v: [f32; 3]) -> [f32; 3] {
+    rot.map(|row| row[0] * v[0] + row[1] * v[1] + row[2] * v[2])
 }
 
 #[cfg(test)]

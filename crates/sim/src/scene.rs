@@ -12,11 +12,20 @@
 //! - only hits inside the current cell count (a hit farther on is found in the cell it lies in), and
 //!   the first one ends the ray.
 //!
+//! [`Scene::cast`] casts one ray that way. The LiDAR casts beam packets instead (`packet`: a laser's
+//! rays at 8 consecutive azimuths walk the grid together and test each primitive on all 8 at once),
+//! which return exactly what `cast` returns ray by ray; `cast` stays the path of the rays packets do
+//! not suit and the reference the packet tests compare against.
+//!
 //! Primitives are cheap to intersect: flat patches (rectangles and ellipses) for leaves, vertical
 //! cylinders for stalks, axis-aligned spheroids for weed clumps. All geometry is `f32` in the field frame
 //! (metres). A test checks the grid against a brute-force caster (every primitive, no grid).
 
 use crate::terrain::Relief;
+
+mod packet;
+
+pub(crate) use packet::LANES as PACKET_LANES;
 
 /// What a LiDAR return hit. For evaluation only: a real sensor does not know it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -132,6 +141,7 @@ impl Prim {
             }
             Shape::Cylinder { cx, cy, r2, z0, z1 } => {
                 let (ox, oy) = (o[0] - cx, o[1] - cy);
+                let mut hit = None;
                 let a = d[0] * d[0] + d[1] * d[1];
                 if a > 1e-12 {
                     let b = ox * d[0] + oy * d[1];
@@ -141,21 +151,23 @@ impl Prim {
                         let t = (-b - disc.sqrt()) / a;
                         let z = o[2] + t * d[2];
                         if t > t_min && t < t_best && z >= z0 && z <= z1 {
-                            return Some(t);
+                            hit = Some(t);
                         }
                     }
                 }
-                // The flat top, seen from above.
+                // The flat top, seen from above. At the rim, f32 rounding can put it a hair before the
+                // wall: the nearer of the two counts, so that the answer does not depend on `t_best`
+                // (beam packets test a primitive again with a nearer `t_best`).
                 if d[2] < 0.0 {
                     let t = (z1 - o[2]) / d[2];
-                    if t > t_min && t < t_best {
+                    if t > t_min && t < hit.unwrap_or(t_best) {
                         let (x, y) = (ox + t * d[0], oy + t * d[1]);
                         if x * x + y * y <= r2 {
-                            return Some(t);
+                            hit = Some(t);
                         }
                     }
                 }
-                None
+                hit
             }
             Shape::Spheroid { c, inv_r, inv_rz } => {
                 let oo = [(o[0] - c[0]) * inv_r, (o[1] - c[1]) * inv_r, (o[2] - c[2]) * inv_rz];
@@ -270,6 +282,9 @@ struct CellInfo {
 #[derive(Debug, Clone)]
 pub(crate) struct Scene {
     prims: Vec<Prim>,
+    /// Per primitive, its horizontal bounds `[x_min, y_min, x_max, y_max]` (field frame, m): beam
+    /// packets skip a primitive that lies beside their wedge without loading it.
+    footprints: Vec<[f32; 4]>,
     relief: Relief,
     /// Upper bound of the relief's slope |∇h| (numerical, with margin), for sphere tracing.
     relief_slope: f64,
@@ -402,8 +417,10 @@ impl Scene {
                 }
             }
         }
+        let footprints = prims.iter().map(|p| p.bounds()).map(|b| [b[0], b[1], b[3], b[4]]).collect();
         Self {
             prims,
+            footprints,
             relief,
             relief_slope,
             x0,
@@ -430,8 +447,14 @@ impl Scene {
 
     /// Casts the unit ray `o + t·d` (field frame) and returns the first hit with `t ≤ t_max`.
     pub fn cast(&self, o: [f32; 3], d: [f32; 3], t_max: f32) -> Option<(f32, Class)> {
+        self.cast_from(o, d, 0.0, t_max)
+    }
+
+    /// Like [`Scene::cast`] but only the hits with `t ≥ t_from` (`t_from ≥ 0`), give or take
+    /// `WINDOW_SLACK_M`: for a ray known to meet nothing before `t_from`.
+    pub fn cast_from(&self, o: [f32; 3], d: [f32; 3], t_from: f32, t_max: f32) -> Option<(f32, Class)> {
         // Everything lies between bottom_z and top_z: clip the ray to that slab first.
-        let (mut t_lo, mut t_hi) = (0f32, t_max);
+        let (mut t_lo, mut t_hi) = (t_from, t_max);
         if d[2].abs() < 1e-9 {
             if o[2] > self.top_z || o[2] < self.bottom_z {
                 return None;

@@ -1,0 +1,565 @@
+//! Beam packets: a few rays that share an origin and nearly a direction (one VLP-16 laser fired at
+//! consecutive azimuths) cast together through the scene's grid, so that they share the cell walk, the
+//! scan of each cell's primitive list and each primitive's load, and the flat-patch test runs on all
+//! rays at once (lanes the compiler vectorises).
+//!
+//! Seen from above, the rays of a packet fan out in a thin wedge from the sensor. The walk cuts the grid
+//! into strips one cell wide across the wedge's main axis (x or y, whichever the wedge runs closer to)
+//! and visits them outwards; in each strip it visits the cells between the wedge's two boundary rays.
+//! Every primitive listed in a visited cell at the packet's height and reaching into the wedge's width
+//! there is tested against every ray still searching, with the same arithmetic as [`Scene::cast`]. A ray
+//! stops once its best hit lies before the next strip: a hit it has not found lies in a cell not yet
+//! visited, hence farther along the axis. So a packet returns what [`Scene::cast`] returns for each ray,
+//! bit for bit where the nearest hit is unique (the tests compare whole revolutions ray by ray). As rays
+//! stop, the wedge narrows to the rays still searching, and once they fit in half the lanes the tests
+//! run on that half only.
+//!
+//! Rays the wedge does not suit go to [`Scene::cast`]: rays that rise or are near vertical, relief (the
+//! packet takes the flat ground analytically), and packets fanning wider than ~25°; rays still searching
+//! `REACH_M` out along the axis (grazing side beams, whose wedge grows wide far out) continue alone from
+//! there.
+
+use super::{Class, Scene, Shape};
+
+/// Rays per packet at most (the lanes of the per-primitive tests).
+pub(crate) const LANES: usize = 8;
+
+/// Rays still searching this far from the sensor along the walk's axis continue alone, m.
+const REACH_M: f32 = 6.0;
+/// Slack of the strips' cell ranges and of the stopping rule, m: covers f32 rounding.
+const SLACK_M: f32 = 1e-3;
+/// Cosine of the widest angle a packet's ray may make with the packet's mean direction (25°).
+const MIN_COS: f32 = 0.906;
+/// Rays whose horizontal component is below this (steeper than ~87°) are cast alone.
+const MIN_HORIZONTAL: f32 = 0.05;
+
+/// What a lane's ray has hit so far: a primitive's index, or one of these.
+const WIN_NONE: u32 = u32::MAX;
+const WIN_GROUND: u32 = u32::MAX - 1;
+
+/// The rays of a packet, one lane each, structure of arrays so that a primitive test runs on all lanes
+/// at once. A lane counts a hit at `t` when `lo < t < best`; an idle lane (no ray, or one whose answer
+/// is final) has `lo = +∞`.
+#[derive(Debug, Clone)]
+struct Lanes {
+    /// Unit directions.
+    dx: [f32; LANES],
+    dy: [f32; LANES],
+    dz: [f32; LANES],
+    lo: [f32; LANES],
+    /// Nearest hit so far, or the end of the ray's stretch while `win` is `WIN_NONE`.
+    best: [f32; LANES],
+    /// What `best` is: a primitive's index, `WIN_GROUND` or `WIN_NONE`.
+    win: [u32; LANES],
+    /// |component of the direction along the walk's axis|: the ray advances `t · along` along it.
+    along: [f32; LANES],
+    /// Per metre along the axis: the ray's sideways drift (signed, along the other axis) and its
+    /// descent (negative).
+    drift: [f32; LANES],
+    descent: [f32; LANES],
+    /// The nearest distance along the axis of a searching lane's `best`: before it no lane stops.
+    settled: f32,
+    /// The ray (index into the packet) in each lane: lanes are compacted as rays stop.
+    ray: [usize; LANES],
+    /// Lanes the primitive tests cover: all, or the first half once every searching ray is there.
+    width: usize,
+}
+
+impl Lanes {
+    const IDLE: Self = Self {
+        dx: [0.0; LANES],
+        dy: [0.0; LANES],
+        dz: [0.0; LANES],
+        lo: [f32::INFINITY; LANES],
+        best: [0.0; LANES],
+        win: [WIN_NONE; LANES],
+        along: [0.0; LANES],
+        drift: [0.0; LANES],
+        descent: [0.0; LANES],
+        settled: f32::INFINITY,
+        ray: {
+            let mut ray = [0; LANES];
+            let mut k = 0;
+            while k < LANES {
+                ray[k] = k;
+                k += 1;
+            }
+            ray
+        },
+        width: LANES,
+    };
+
+    #[inline]
+    fn searching(&self, k: usize) -> bool {
+        self.lo[k] < f32::INFINITY
+    }
+
+    /// Recomputes `settled` after hits.
+    #[inline]
+    fn settle(&mut self) {
+        let mut settled = f32::INFINITY;
+        for k in 0..LANES {
+            let a = if self.lo[k] < f32::INFINITY { self.best[k] * self.along[k] } else { f32::INFINITY };
+            settled = if a < settled { a } else { settled };
+        }
+        self.settled = settled;
+    }
+
+    /// Stops the rays whose best hit (or end) lies before `dist` along the axis: no strip from there on
+    /// can hold a nearer hit. Whether any stopped.
+    #[inline]
+    fn retire(&mut self, dist: f32) -> bool {
+        if dist - SLACK_M <= self.settled {
+            return false;
+        }
+        for k in 0..LANES {
+            if self.best[k] * self.along[k] < dist - SLACK_M {
+                self.lo[k] = f32::INFINITY;
+            }
+        }
+        self.settle();
+        if self.width == LANES && (0..LANES).filter(|&k| self.searching(k)).count() <= LANES / 2 {
+            self.compact();
+        }
+        true
+    }
+
+    /// Moves the searching rays to the first half of the lanes, which the tests then cover alone
+    /// (half the vector work). Stopped rays keep their answers in the other lanes.
+    fn compact(&mut self) {
+        let mut front = 0;
+        for k in 0..LANES {
+            if self.searching(k) {
+                self.swap(front, k);
+                front += 1;
+            }
+        }
+        self.width = LANES / 2;
+    }
+
+    fn swap(&mut self, i: usize, j: usize) {
+        self.dx.swap(i, j);
+        self.dy.swap(i, j);
+        self.dz.swap(i, j);
+        self.lo.swap(i, j);
+        self.best.swap(i, j);
+        self.win.swap(i, j);
+        self.along.swap(i, j);
+        self.drift.swap(i, j);
+        self.descent.swap(i, j);
+        self.ray.swap(i, j);
+    }
+
+    /// The searching rays' extreme drifts and descents: `(left, right, steep, flat)`; `None` when no
+    /// ray searches.
+    fn spread(&self) -> Option<(f32, f32, f32, f32)> {
+        let mut b = (f32::INFINITY, f32::NEG_INFINITY, f32::INFINITY, f32::NEG_INFINITY);
+        for k in (0..LANES).filter(|&k| self.searching(k)) {
+            b = (
+                b.0.min(self.drift[k]),
+                b.1.max(self.drift[k]),
+                b.2.min(self.descent[k]),
+                b.3.max(self.descent[k]),
+            );
+        }
+        (b.0 <= b.1).then_some(b)
+    }
+
+    /// A flat patch (primitive `index`) against every lane, with `Prim::intersect`'s arithmetic
+    /// operation for operation.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn patch<const ELLIPSE: bool, const WIDTH: usize>(
+        &mut self,
+        o: [f32; 3],
+        po: [f32; 3],
+        n: [f32; 3],
+        ua: [f32; 3],
+        wa: [f32; 3],
+        index: u32,
+    ) {
+        let num = n[0] * (po[0] - o[0]) + n[1] * (po[1] - o[1]) + n[2] * (po[2] - o[2]);
+        // Two passes over plain arrays with the hit as a bit mask: this shape the compiler vectorises
+        // (`if`/`&&` per lane, or bool arrays, keep it scalar).
+        let (mut t, mut mask) = ([0f32; WIDTH], [0u32; WIDTH]);
+        for k in 0..WIDTH {
+            let (dx, dy, dz) = (self.dx[k], self.dy[k], self.dz[k]);
+            let denom = n[0] * dx + n[1] * dy + n[2] * dz;
+            let tk = num / denom;
+            let q0 = o[0] + tk * dx - po[0];
+            let q1 = o[1] + tk * dy - po[1];
+            let q2 = o[2] + tk * dz - po[2];
+            let s = q0 * ua[0] + q1 * ua[1] + q2 * ua[2];
+            let r = q0 * wa[0] + q1 * wa[1] + q2 * wa[2];
+            let inside = if ELLIPSE {
+                (s * s + r * r <= 1.0) as u32
+            } else {
+                (s.abs() <= 1.0) as u32 & (r.abs() <= 1.0) as u32
+            };
+            let hit = (denom.abs() >= 1e-12) as u32
+                & (tk > self.lo[k]) as u32
+                & (tk < self.best[k]) as u32
+                & inside;
+            mask[k] = 0u32.wrapping_sub(hit);
+            t[k] = tk;
+        }
+        let mut any = 0;
+        for k in 0..WIDTH {
+            let m = mask[k];
+            self.best[k] = f32::from_bits((t[k].to_bits() & m) | (self.best[k].to_bits() & !m));
+            self.win[k] = (index & m) | (self.win[k] & !m);
+            any |= m;
+        }
+        if any != 0 {
+            self.settle();
+        }
+    }
+}
+
+/// How a ray enters a packet.
+enum Start {
+    /// Its answer is known already.
+    Done(Option<(f32, Class)>),
+    /// The packet does not handle it.
+    Alone,
+    /// It searches with the packet from `t_lo`; its stretch ends at `t_hi`, on the ground if `ground`.
+    Search { t_lo: f32, t_hi: f32, ground: bool, horizontal: f32 },
+}
+
+/// How far a walk went.
+enum Searched {
+    /// Every ray's answer is final.
+    All,
+    /// The rays still searching may hit nothing nearer than this distance along the walk's axis.
+    UpTo(f32),
+}
+
+/// The geometry of a packet's walk, seen from above.
+#[derive(Debug, Clone, Copy)]
+struct Walk {
+    /// The axis the strips cut across (0: x, 1: y) and the other one.
+    a: usize,
+    b: usize,
+    /// +1 or -1: the direction the rays go along `a`.
+    sign: f32,
+}
+
+impl Scene {
+    /// Casts the unit rays `o + t·dirs[k]` (field frame, at most [`LANES`]) and writes each one's first
+    /// hit with `t ≤ t_max` to `out[k]`, as [`Scene::cast`] would.
+    pub(crate) fn cast_packet(
+        &self,
+        o: [f32; 3],
+        dirs: &[[f32; 3]],
+        t_max: f32,
+        out: &mut [Option<(f32, Class)>],
+    ) {
+        let mut lanes = Lanes::IDLE;
+        let mut units = [[0f32; 2]; LANES];
+        let mut mean = [0f32; 2];
+        for (k, (&d, slot)) in dirs.iter().zip(out.iter_mut()).take(LANES).enumerate() {
+            *slot = None;
+            match self.packet_ray(o, d, t_max) {
+                Start::Done(hit) => *slot = hit,
+                Start::Alone => *slot = self.cast(o, d, t_max),
+                Start::Search { t_lo, t_hi, ground, horizontal } => {
+                    let u = [d[0] / horizontal, d[1] / horizontal];
+                    mean = [mean[0] + u[0], mean[1] + u[1]];
+                    units[k] = u;
+                    (lanes.dx[k], lanes.dy[k], lanes.dz[k]) = (d[0], d[1], d[2]);
+                    (lanes.lo[k], lanes.best[k]) = (t_lo, t_hi);
+                    lanes.win[k] = if ground { WIN_GROUND } else { WIN_NONE };
+                }
+            }
+        }
+        let norm = (mean[0] * mean[0] + mean[1] * mean[1]).sqrt();
+        if norm == 0.0 {
+            return;
+        }
+        let walk = self.plan(&mut lanes, &units, [mean[0] / norm, mean[1] / norm]);
+        // Everything the walk has not settled lies at least this far along its axis.
+        let searched = match walk {
+            Some(w) => self.walk(o, &w, &mut lanes),
+            None => Searched::UpTo(0.0),
+        };
+        for k in 0..LANES {
+            let (Some(slot), Some(&d)) = (out.get_mut(lanes.ray[k]), dirs.get(lanes.ray[k])) else {
+                continue;
+            };
+            if lanes.searching(k)
+                && let Searched::UpTo(dist) = searched
+            {
+                // Nothing nearer is left to find: the ray goes on alone from there.
+                let t_from =
+                    if lanes.along[k] > 0.0 { ((dist - SLACK_M) / lanes.along[k]).max(0.0) } else { 0.0 };
+                *slot = self.cast_from(o, d, t_from, t_max);
+            } else {
+                match lanes.win[k] {
+                    // An idle lane, or a ray whose stretch ended before the ground: `out` holds its answer.
+                    WIN_NONE => {}
+                    WIN_GROUND => *slot = Some((lanes.best[k], Class::Ground)),
+                    i => *slot = self.prims.get(i as usize).map(|p| (lanes.best[k], p.class)),
+                }
+            }
+        }
+    }
+
+    /// How a ray enters a packet.
+    fn packet_ray(&self, o: [f32; 3], d: [f32; 3], t_max: f32) -> Start {
+        let horizontal = (d[0] * d[0] + d[1] * d[1]).sqrt();
+        // Written so that NaN directions go alone too.
+        let descends = d[2] < 0.0 && horizontal >= MIN_HORIZONTAL;
+        if !self.relief.is_flat() || !descends {
+            // A rising ray from above everything meets nothing; the packet does not handle the rest.
+            if d[2] >= 0.0 && o[2] > self.top_z {
+                return Start::Done(None);
+            }
+            return Start::Alone;
+        }
+        // The stretch through the height slab, clipped as `Scene::cast` clips it (d[2] < 0 here).
+        let ta = (self.top_z - o[2]) / d[2];
+        let tb = (self.bottom_z - o[2]) / d[2];
+        let t_lo = 0f32.max(ta.min(tb));
+        let t_hi = t_max.min(ta.max(tb));
+        if t_lo >= t_hi || t_lo.is_nan() || t_hi.is_nan() {
+            return Start::Done(None);
+        }
+        // Flat ground: the crossing `Scene::cast` finds, in or out of the grid.
+        let t_ground = -o[2] / d[2];
+        if t_ground >= t_lo && t_ground <= t_hi {
+            Start::Search { t_lo, t_hi: t_ground, ground: true, horizontal }
+        } else {
+            Start::Search { t_lo, t_hi, ground: false, horizontal }
+        }
+    }
+
+    /// The walk's axis and wedge for the searching lanes (unit horizontal directions `units`, mean
+    /// direction `centre`); `None` when the packet fans wider than `MIN_COS`.
+    fn plan(&self, lanes: &mut Lanes, units: &[[f32; 2]; LANES], centre: [f32; 2]) -> Option<Walk> {
+        let (a, b) = if centre[0].abs() >= centre[1].abs() { (0, 1) } else { (1, 0) };
+        let sign = if centre[a] >= 0.0 { 1f32 } else { -1.0 };
+        for (k, u) in units.iter().enumerate() {
+            if !lanes.searching(k) {
+                continue;
+            }
+            if centre[0] * u[0] + centre[1] * u[1] < MIN_COS {
+                return None;
+            }
+            // Within 25° of a direction within 45° of the axis: |u[a]| > sin 20°.
+            lanes.drift[k] = sign * u[b] / u[a];
+            lanes.along[k] = [lanes.dx[k], lanes.dy[k]][a].abs();
+            lanes.descent[k] = lanes.dz[k] / lanes.along[k];
+        }
+        lanes.settle();
+        Some(Walk { a, b, sign })
+    }
+
+    /// Visits the strips outwards and, in each, the wedge's cells, until no ray searches or the packet's
+    /// reach is passed.
+    fn walk(&self, o: [f32; 3], w: &Walk, lanes: &mut Lanes) -> Searched {
+        let (a, b) = (w.a, w.b);
+        let cell = self.cell_m;
+        let (origin, n) = ([self.x0, self.y0], [self.nx, self.ny]);
+        // Cell index of a coordinate, clamped to [-1, n]: `as` truncates towards zero, hence the shift.
+        let index =
+            |v: f32, k: usize| (((v - origin[k]) * self.inv_cell + 1.0).max(0.0) as i32 - 1).min(n[k]);
+        // Nothing lies above top_z: start at the strip where the first ray dips under it.
+        let start = (0..LANES)
+            .filter(|&k| lanes.searching(k))
+            .map(|k| lanes.lo[k] * lanes.along[k])
+            .fold(f32::INFINITY, f32::min);
+        let mut s = index(o[a] + w.sign * start, a);
+        let step = if w.sign > 0.0 { 1 } else { -1 };
+        // The searching rays' extreme drifts and descents: the wedge narrows as rays stop.
+        let Some(mut spread) = lanes.spread() else { return Searched::All };
+        while (0..n[a]).contains(&s) {
+            let e0 = origin[a] + s as f32 * cell;
+            let (near, far) = if w.sign > 0.0 { (e0, e0 + cell) } else { (e0 + cell, e0) };
+            let (d_near, d_far) = ((w.sign * (near - o[a])).max(0.0), (w.sign * (far - o[a])).max(0.0));
+            if lanes.retire(d_near) {
+                match lanes.spread() {
+                    Some(narrower) => spread = narrower,
+                    None => return Searched::All,
+                }
+            }
+            if d_near >= REACH_M {
+                return Searched::UpTo(d_near);
+            }
+            // Across the strip the wedge lies between its boundary rays at the strip's edges.
+            let (left, right, steep, flat) = spread;
+            let ends = [d_near * left, d_far * left, d_near * right, d_far * right];
+            let (lo, hi) =
+                ends.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(l, h), &v| (l.min(v), h.max(v)));
+            let t0 = index(o[b] + lo - SLACK_M, b).max(0);
+            let t1 = index(o[b] + hi + SLACK_M, b).min(n[b] - 1);
+            // The rays descend: across the strip they lie between their heights at its edges.
+            let z = (o[2] + steep * d_far, o[2] + flat * d_near);
+            // A primitive can meet a ray in this strip only if it reaches into the wedge's width here.
+            let across = (b, o[b] + lo - SLACK_M, o[b] + hi + SLACK_M);
+            for t in t0..=t1 {
+                let (i, j) = if a == 0 { (s, t) } else { (t, s) };
+                self.visit(o, lanes, (j * self.nx + i) as usize, z, across);
+            }
+            s += step;
+        }
+        Searched::All
+    }
+
+    /// Tests the primitives of cell `c` that reach into the rays' height range `(z_low, z_high)` over
+    /// it and into their range `(lo, hi)` along axis `b` against every searching ray.
+    #[inline]
+    fn visit(
+        &self,
+        o: [f32; 3],
+        lanes: &mut Lanes,
+        c: usize,
+        (z_low, z_high): (f32, f32),
+        (b, lo, hi): (usize, f32, f32),
+    ) {
+        match self.heights.get(c) {
+            Some(&h) if z_low <= h => {}
+            _ => return,
+        }
+        let Some(info) = self.cells.get(c) else { return };
+        let (refs, prims) = (self.refs.as_slice(), self.prims.as_slice());
+        for r in refs.get(info.start as usize..info.end as usize).unwrap_or(&[]) {
+            if r.z_max < z_low {
+                break;
+            }
+            if r.z_min > z_high {
+                continue;
+            }
+            match self.footprints.get(r.prim as usize) {
+                Some(f) if f[b] <= hi && f[b + 2] >= lo => {}
+                _ => continue,
+            }
+            let Some(p) = prims.get(r.prim as usize) else { continue };
+            match p.shape {
+                Shape::Patch { o: po, n, ua, wa, ellipse: true } => {
+                    if lanes.width == LANES {
+                        lanes.patch::<true, LANES>(o, po, n, ua, wa, r.prim)
+                    } else {
+                        lanes.patch::<true, { LANES / 2 }>(o, po, n, ua, wa, r.prim)
+                    }
+                }
+                Shape::Patch { o: po, n, ua, wa, ellipse: false } => {
+                    if lanes.width == LANES {
+                        lanes.patch::<false, LANES>(o, po, n, ua, wa, r.prim)
+                    } else {
+                        lanes.patch::<false, { LANES / 2 }>(o, po, n, ua, wa, r.prim)
+                    }
+                }
+                // Stalks and weed clumps are few: one lane at a time.
+                _ => {
+                    for k in 0..LANES {
+                        let d = [lanes.dx[k], lanes.dy[k], lanes.dz[k]];
+                        if lanes.searching(k)
+                            && let Some(t) = p.intersect(o, d, lanes.lo[k], lanes.best[k])
+                        {
+                            (lanes.best[k], lanes.win[k]) = (t, r.prim);
+                            lanes.settle();
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::field::{Crop, Field, FieldConfig, Stage};
+
+    /// The rays of one VLP-16 revolution (16 beams, 1800 columns, column-major) from a sensor 1.5 m over
+    /// `(x, y)`, heading `yaw`, pitched 30° down, in the field frame.
+    fn revolution(yaw: f32) -> Vec<[f32; 3]> {
+        let (sp, cp) = 30f32.to_radians().sin_cos();
+        let (sy, cy) = yaw.sin_cos();
+        let mut dirs = Vec::with_capacity(1800 * 16);
+        for c in 0..1800 {
+            let az = (180.0 - c as f32 * 0.2).to_radians();
+            for b in 0..16 {
+                let el = (-15.0 + 2.0 * b as f32).to_radians();
+                let s = [el.cos() * az.cos(), el.cos() * az.sin(), el.sin()];
+                // Pitch down about y, then yaw about z.
+                let p = [cp * s[0] + sp * s[2], s[1], -sp * s[0] + cp * s[2]];
+                dirs.push([cy * p[0] - sy * p[1], sy * p[0] + cy * p[1], p[2]]);
+            }
+        }
+        dirs
+    }
+
+    /// Every ray of whole revolutions cast in packets and alone: same hits (within 1 mm) and classes.
+    fn packets_match_single_rays(config: FieldConfig, poses: &[(f32, f32, f32)], min_crop_hits: usize) {
+        let field = Field::generate(&config, 3).unwrap();
+        let s = field.scene();
+        let (mut crop, mut mismatches) = (0, Vec::new());
+        for &(x, y, yaw) in poses {
+            let o = [x, y, 1.5];
+            let dirs = revolution(yaw);
+            for beam in 0..16 {
+                let rays: Vec<[f32; 3]> = dirs.iter().skip(beam).step_by(16).copied().collect();
+                for chunk in rays.chunks(LANES) {
+                    let mut out = [None; LANES];
+                    s.cast_packet(o, chunk, 100.0, &mut out[..chunk.len()]);
+                    for (d, packet) in chunk.iter().zip(out) {
+                        let alone = s.cast(o, *d, 100.0);
+                        let same = match (packet, alone) {
+                            (None, None) => true,
+                            (Some((tp, cp)), Some((ta, ca))) => (tp - ta).abs() < 1e-3 && cp == ca,
+                            _ => false,
+                        };
+                        crop += usize::from(matches!(alone, Some((_, Class::Crop))));
+                        if !same {
+                            mismatches.push((o, *d, packet, alone));
+                        }
+                    }
+                }
+            }
+        }
+        assert!(mismatches.is_empty(), "{} mismatches, first {:?}", mismatches.len(), mismatches.first());
+        // The rays must exercise the plants, not only the ground.
+        assert!(crop > min_crop_hits, "{crop} crop hits");
+    }
+
+    #[test]
+    fn packets_match_single_rays_over_grown_corn() {
+        let config = FieldConfig {
+            crop: Crop::Corn,
+            stage: Stage::Grown,
+            rows: 8,
+            length_m: 12.0,
+            weeds_per_m2: 2.0,
+            ..FieldConfig::default()
+        };
+        packets_match_single_rays(config, &[(4.0, 2.625, 0.0), (6.0, 2.3, 0.3), (11.5, 0.0, -2.5)], 10_000);
+    }
+
+    #[test]
+    fn packets_match_single_rays_over_young_soybean() {
+        let config = FieldConfig {
+            crop: Crop::Soybean,
+            stage: Stage::Young,
+            rows: 8,
+            length_m: 12.0,
+            weeds_per_m2: 2.0,
+            ..FieldConfig::default()
+        };
+        packets_match_single_rays(config, &[(4.0, 2.625, 0.0), (-1.0, 3.0, 0.8)], 2_000);
+    }
+
+    #[test]
+    fn packets_over_relief_fall_back_to_single_rays() {
+        let config = FieldConfig {
+            crop: Crop::Corn,
+            stage: Stage::Young,
+            rows: 4,
+            length_m: 6.0,
+            relief_m: 0.15,
+            relief_wavelength_m: 5.0,
+            ..FieldConfig::default()
+        };
+        packets_match_single_rays(config, &[(3.0, 1.125, 0.2)], 500);
+    }
+}
