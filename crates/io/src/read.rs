@@ -675,6 +675,14 @@ impl State {
                     })?;
                 Ok((mount, MountSource::TfStatic))
             }
+            // A chain that exists but overflows is a broken mount, not a missing one: no fallback.
+            Err(LookupError::NonFinite { .. }) => Err(RecordingError::BadMount {
+                frame: format!("{} -> {frame_id}", self.config.base_frame),
+                source: ConfigError::invalid(
+                    "mount",
+                    "the /tf_static chain composes to a non-finite transform",
+                ),
+            }),
             Err(e) => match self.config.fallback_mount {
                 Some(m) => Ok((m, MountSource::Fallback)),
                 None => Err(RecordingError::MissingTransform(e)),

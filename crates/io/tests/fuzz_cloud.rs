@@ -17,7 +17,6 @@ use croprow_io::cloud::{self, LayoutError, PointFormat, Stamped};
 use croprow_io::msg::{PointCloud2, PointField};
 use fuzzer::{Campaign, Outcome, Verdict};
 use proptest::prelude::*;
-use proptest::test_runner::{Config, TestRunner};
 
 /// Cases by default (the long run's figures are in docs/fuzzing.md).
 const EXECS: usize = 20_000;
@@ -187,14 +186,7 @@ prop_compose! {
 #[test]
 fn fuzz_cloud_layouts_match_the_reference() {
     let cases = fuzzer::execs_or(EXECS);
-    let config = Config { cases: cases as u32, failure_persistence: None, ..Config::default() };
-    let mut runner = TestRunner::new_with_rng(
-        config,
-        proptest::test_runner::TestRng::from_seed(
-            proptest::test_runner::RngAlgorithm::ChaCha,
-            &fuzzer::base_seed().to_le_bytes().repeat(4),
-        ),
-    );
+    let mut runner = fuzzer::proptest_runner("cloud_layouts", EXECS);
     // proptest takes an `Fn`: the counters and the reused buffer live in cells.
     let (accepted, rejected) = (Cell::new(0usize), Cell::new(0usize));
     let out = RefCell::new(Vec::new());

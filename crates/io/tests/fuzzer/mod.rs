@@ -82,6 +82,16 @@ pub fn rng_for(name: &str) -> ChaCha8Rng {
     ChaCha8Rng::seed_from_u64(mix(base_seed() ^ fnv(name.as_bytes())))
 }
 
+/// A proptest runner for structured inputs: `CROPROW_FUZZ_EXECS` cases (or `default_cases`), seeded
+/// from the base seed and `name`, no failure files (the failing case is printed).
+pub fn proptest_runner(name: &str, default_cases: usize) -> proptest::test_runner::TestRunner {
+    use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
+    let cases = u32::try_from(execs_or(default_cases)).unwrap_or(u32::MAX);
+    let seed = mix(base_seed() ^ fnv(name.as_bytes()));
+    let config = Config { cases, failure_persistence: None, ..Config::default() };
+    TestRunner::new_with_rng(config, TestRng::from_seed(RngAlgorithm::ChaCha, &seed.to_le_bytes().repeat(4)))
+}
+
 fn fnv(bytes: &[u8]) -> u64 {
     bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| (h ^ u64::from(b)).wrapping_mul(0x100_0000_01b3))
 }
