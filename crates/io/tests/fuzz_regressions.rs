@@ -5,6 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use croprow_io::msg::{self, TfMessage};
+use croprow_io::read::{Recording, RecordingError, ReplayConfig};
 use croprow_io::tf::{LookupError, TransformBuffer};
 
 fn input(name: &str) -> Vec<u8> {
@@ -23,4 +24,25 @@ fn tf_lookup_of_an_overflowing_chain_is_an_error_not_infinity() {
     }
     let lookup = buffer.lookup("velodyne", "base_footprint");
     assert!(matches!(lookup, Err(LookupError::NonFinite { .. })), "{lookup:?}");
+}
+
+/// An MCAP file read front to back (no chunk index) whose uncompressed chunk holds a record longer
+/// than what is left of the chunk: mcap 0.26's linear reader underflowed a counter and panicked
+/// ("attempt to subtract with overflow"). The replay now ends with a `Corrupt` error instead.
+#[test]
+fn mcap_record_longer_than_its_chunk_is_corrupt_not_a_panic() {
+    let path = std::env::temp_dir().join(format!("croprow-regression-{}-chunk.mcap", std::process::id()));
+    std::fs::write(&path, input("mcap_record_longer_than_its_chunk.mcap")).unwrap();
+    let mut replay = Recording::open(&path).unwrap().replay(&ReplayConfig::default()).unwrap();
+    let mut items = Vec::new();
+    while let Some(item) = replay.next_scan() {
+        items.push(item.map(|f| f.stamp_s));
+        assert!(items.len() < 100, "the replay ends");
+    }
+    let _ = std::fs::remove_file(&path);
+    let last = items.last().expect("an error ends the replay");
+    assert!(
+        matches!(last, Err(RecordingError::Corrupt { detail, .. }) if detail.contains("chunk")),
+        "{last:?}"
+    );
 }

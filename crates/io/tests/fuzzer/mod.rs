@@ -107,6 +107,8 @@ fn mix(mut z: u64) -> u64 {
 thread_local! {
     /// Set while a fuzz target runs: its panics are caught and reported, not printed.
     static QUIET: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+    /// Where the last quiet panic happened.
+    static LOCATION: std::cell::RefCell<String> = const { std::cell::RefCell::new(String::new()) };
 }
 
 /// Installs (once) a panic hook that stays silent inside fuzz targets and defers to the previous
@@ -116,7 +118,10 @@ fn install_quiet_hook() {
     ONCE.call_once(|| {
         let previous = panic::take_hook();
         panic::set_hook(Box::new(move |info| {
-            if !QUIET.with(|q| q.get()) {
+            if QUIET.with(|q| q.get()) {
+                let at = info.location().map(|l| format!("{}:{}", l.file(), l.line())).unwrap_or_default();
+                LOCATION.with(|l| *l.borrow_mut() = at);
+            } else {
                 previous(info);
             }
         }));
@@ -135,7 +140,7 @@ pub fn catch<T>(f: impl FnOnce() -> T) -> Result<T, String> {
             .map(|s| (*s).to_owned())
             .or_else(|| payload.downcast_ref::<String>().cloned())
             .unwrap_or_else(|| "non-string panic payload".to_owned());
-        format!("panic: {msg}")
+        format!("panic at {}: {msg}", LOCATION.with(|l| l.borrow().clone()))
     })
 }
 
