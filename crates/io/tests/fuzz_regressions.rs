@@ -4,6 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
+use croprow_io::maps;
 use croprow_io::msg::{self, TfMessage};
 use croprow_io::read::{Recording, RecordingError, ReplayConfig};
 use croprow_io::tf::{LookupError, TransformBuffer};
@@ -45,4 +46,17 @@ fn mcap_record_longer_than_its_chunk_is_corrupt_not_a_panic() {
         matches!(last, Err(RecordingError::Corrupt { detail, .. }) if detail.contains("chunk")),
         "{last:?}"
     );
+}
+
+/// A LAS header claiming 100 663 317 points of 63 744 bytes each in a 4 KiB file: the reader asked
+/// the `las` crate for 65 536 points at a time and so allocated (and zeroed) 4 GiB per read, seconds
+/// of page faults for a file it then refused. Chunks are now sized in bytes (2 MiB); the file is
+/// still refused, at its first point.
+#[test]
+fn las_with_a_huge_record_length_is_refused_without_a_huge_chunk() {
+    let path = std::env::temp_dir().join(format!("croprow-regression-{}-reclen.las", std::process::id()));
+    std::fs::write(&path, input("las_record_length_63744.las")).unwrap();
+    let err = maps::read(&path).unwrap_err().to_string();
+    let _ = std::fs::remove_file(&path);
+    assert!(err.contains("LAS point 0"), "{err}");
 }

@@ -65,6 +65,8 @@ pub struct Report {
     pub failures: Vec<Failure>,
     /// Slowest single execution (reported, never asserted: hangs show as a test that does not end).
     pub slowest: Duration,
+    /// Index of the slowest execution; its input is saved beside the failures for a look.
+    pub slowest_exec: usize,
 }
 
 /// Executions per campaign: `CROPROW_FUZZ_EXECS` or the test's default.
@@ -201,13 +203,14 @@ impl Campaign {
     pub fn run(self, mut target: impl FnMut(&[u8]) -> Outcome) -> Report {
         let report = self.run_quietly(&mut target);
         println!(
-            "fuzz {}: {} executions ({} accepted, {} rejected), {} failures, slowest {:.1} ms, seed {}",
+            "fuzz {}: {} executions ({} accepted, {} rejected), {} failures, slowest {:.1} ms (exec {}), seed {}",
             report.name,
             report.execs,
             report.accepted,
             report.rejected,
             report.failures.len(),
             report.slowest.as_secs_f64() * 1e3,
+            report.slowest_exec,
             base_seed(),
         );
         if !report.failures.is_empty() {
@@ -242,7 +245,9 @@ impl Campaign {
             rejected: 0,
             failures: Vec::new(),
             slowest: Duration::ZERO,
+            slowest_exec: 0,
         };
+        let mut slowest_input = Vec::new();
         let mut input = Vec::new();
         for exec in 0..self.execs {
             let mut rng = ChaCha8Rng::seed_from_u64(mix(base_seed() ^ name_hash).wrapping_add(exec as u64));
@@ -259,7 +264,11 @@ impl Campaign {
             }
             let started = Instant::now();
             let outcome = catch(|| target(&input)).and_then(|o| o);
-            report.slowest = report.slowest.max(started.elapsed());
+            if started.elapsed() > report.slowest {
+                report.slowest = started.elapsed();
+                report.slowest_exec = exec;
+                slowest_input.clone_from(&input);
+            }
             report.execs += 1;
             match outcome {
                 Ok(Verdict::Accepted) => {
@@ -286,6 +295,10 @@ impl Campaign {
                     }
                 }
             }
+        }
+        let dir = std::env::temp_dir().join("croprow-fuzz-failures");
+        if std::fs::create_dir_all(&dir).is_ok() {
+            let _ = std::fs::write(dir.join(format!("{}-slowest.bin", self.name)), &slowest_input);
         }
         report
     }
