@@ -60,3 +60,15 @@ fn las_with_a_huge_record_length_is_refused_without_a_huge_chunk() {
     let _ = std::fs::remove_file(&path);
     assert!(err.contains("LAS point 0"), "{err}");
 }
+
+/// An ascii PLY vertex whose list property says it has 18 446 744 073 709 551 616 items: the count
+/// was turned into a token index with `as usize` (saturating) and `1 + usize::MAX` overflowed, a
+/// panic in builds with overflow checks. A list count must now be a whole number that fits its line.
+#[test]
+fn ply_ascii_list_length_past_its_line_is_refused_not_a_panic() {
+    let path = std::env::temp_dir().join(format!("croprow-regression-{}-list.ply", std::process::id()));
+    std::fs::write(&path, input("ply_ascii_list_length_2e19.ply")).unwrap();
+    let err = maps::read(&path).unwrap_err().to_string();
+    let _ = std::fs::remove_file(&path);
+    assert!(err.contains("PLY vertex 1: list length `18446744073709551616`"), "{err}");
+}
