@@ -69,6 +69,90 @@ pub struct Report {
     pub slowest_exec: usize,
 }
 
+impl Report {
+    fn new(name: &str) -> Self {
+        Self {
+            name: name.to_owned(),
+            execs: 0,
+            accepted: 0,
+            rejected: 0,
+            failures: Vec::new(),
+            slowest: Duration::ZERO,
+            slowest_exec: 0,
+        }
+    }
+
+    /// Prints the counts (one line, the figures docs/fuzzing.md records) and fails the test on any
+    /// failure, listing the first ten with their inputs.
+    fn conclude(self) -> Self {
+        println!(
+            "fuzz {}: {} executions ({} accepted, {} rejected), {} failures, slowest {:.1} ms (exec {}), seed {}",
+            self.name,
+            self.execs,
+            self.accepted,
+            self.rejected,
+            self.failures.len(),
+            self.slowest.as_secs_f64() * 1e3,
+            self.slowest_exec,
+            base_seed(),
+        );
+        if !self.failures.is_empty() {
+            let dir = std::env::temp_dir().join("croprow-fuzz-failures");
+            let _ = std::fs::create_dir_all(&dir);
+            let mut text = String::new();
+            for f in self.failures.iter().take(10) {
+                let file = dir.join(format!("{}-{}.bin", self.name, f.exec));
+                let _ = std::fs::write(&file, &f.input);
+                text.push_str(&format!(
+                    "\n  exec {} ({} bytes, saved to {}): {}\n    {}",
+                    f.exec,
+                    f.input.len(),
+                    file.display(),
+                    f.what,
+                    hex(&f.input, 256)
+                ));
+            }
+            panic!("fuzz {}: {} failures (first 10):{text}", self.name, self.failures.len());
+        }
+        self
+    }
+
+    /// Counts one execution.
+    fn record(&mut self, exec: usize, outcome: Outcome, input: &[u8], elapsed: Duration) {
+        self.execs += 1;
+        if elapsed > self.slowest {
+            self.slowest = elapsed;
+            self.slowest_exec = exec;
+        }
+        match outcome {
+            Ok(Verdict::Accepted) => self.accepted += 1,
+            Ok(Verdict::Rejected) => self.rejected += 1,
+            Err(what) => self.failures.push(Failure { exec, what, input: input.to_vec() }),
+        }
+    }
+}
+
+/// Runs a generator-driven campaign: each execution gets its own seeded rng, builds an input with
+/// it, writes that input into the buffer (for the failure report) and checks it. Counts and failures
+/// are reported like [`Campaign::run`]'s.
+pub fn run_generated(
+    name: &str,
+    default_execs: usize,
+    mut target: impl FnMut(&mut ChaCha8Rng, &mut Vec<u8>) -> Outcome,
+) -> Report {
+    let name_hash = fnv(name.as_bytes());
+    let mut report = Report::new(name);
+    let mut input = Vec::new();
+    for exec in 0..execs_or(default_execs) {
+        let mut rng = ChaCha8Rng::seed_from_u64(mix(base_seed() ^ name_hash).wrapping_add(exec as u64));
+        input.clear();
+        let started = Instant::now();
+        let outcome = catch(|| target(&mut rng, &mut input)).and_then(|o| o);
+        report.record(exec, outcome, &input, started.elapsed());
+    }
+    report.conclude()
+}
+
 /// Executions per campaign: `CROPROW_FUZZ_EXECS` or the test's default.
 pub fn execs_or(default: usize) -> usize {
     std::env::var("CROPROW_FUZZ_EXECS").ok().and_then(|v| v.trim().parse().ok()).unwrap_or(default)
@@ -202,60 +286,24 @@ impl Campaign {
     /// Runs the campaign, prints its counts, and fails the test on any panic or violation.
     pub fn run(self, mut target: impl FnMut(&[u8]) -> Outcome) -> Report {
         let report = self.run_quietly(&mut target);
-        println!(
-            "fuzz {}: {} executions ({} accepted, {} rejected), {} failures, slowest {:.1} ms (exec {}), seed {}",
-            report.name,
-            report.execs,
-            report.accepted,
-            report.rejected,
-            report.failures.len(),
-            report.slowest.as_secs_f64() * 1e3,
-            report.slowest_exec,
-            base_seed(),
-        );
-        if !report.failures.is_empty() {
-            let dir = std::env::temp_dir().join("croprow-fuzz-failures");
-            let _ = std::fs::create_dir_all(&dir);
-            let mut text = String::new();
-            for f in report.failures.iter().take(10) {
-                let file = dir.join(format!("{}-{}.bin", report.name, f.exec));
-                let _ = std::fs::write(&file, &f.input);
-                text.push_str(&format!(
-                    "\n  exec {} ({} bytes, saved to {}): {}\n    {}",
-                    f.exec,
-                    f.input.len(),
-                    file.display(),
-                    f.what,
-                    hex(&f.input, 256)
-                ));
-            }
-            panic!("fuzz {}: {} failures (first 10):{text}", report.name, report.failures.len());
-        }
-        report
+        report.conclude()
     }
 
     fn run_quietly(&self, target: &mut impl FnMut(&[u8]) -> Outcome) -> Report {
         let name_hash = fnv(self.name.as_bytes());
         let mut pool: Vec<Vec<u8>> = self.seeds.clone();
         let pool_cap = self.seeds.len() + 64;
-        let mut report = Report {
-            name: self.name.clone(),
-            execs: 0,
-            accepted: 0,
-            rejected: 0,
-            failures: Vec::new(),
-            slowest: Duration::ZERO,
-            slowest_exec: 0,
-        };
+        let mut report = Report::new(&self.name);
         let mut slowest_input = Vec::new();
         let mut input = Vec::new();
         for exec in 0..self.execs {
             let mut rng = ChaCha8Rng::seed_from_u64(mix(base_seed() ^ name_hash).wrapping_add(exec as u64));
             input.clear();
-            // One execution in 16 runs a seed as it is: the valid inputs must always pass.
+            // One execution in 16 runs a pool input as it is: valid inputs must always pass.
             let from = rng.random_range(0..pool.len());
             input.extend_from_slice(&pool[from]);
-            if exec % 16 != 0 {
+            let mutated = !exec.is_multiple_of(16);
+            if mutated {
                 let stacked = 1 + (rng.random_range(0u32..64)).trailing_zeros().min(7) as usize;
                 for _ in 0..stacked {
                     mutate(&mut rng, &mut input, &pool, &self.dictionary);
@@ -264,37 +312,24 @@ impl Campaign {
             }
             let started = Instant::now();
             let outcome = catch(|| target(&input)).and_then(|o| o);
-            if started.elapsed() > report.slowest {
-                report.slowest = started.elapsed();
-                report.slowest_exec = exec;
+            let elapsed = started.elapsed();
+            if elapsed > report.slowest {
                 slowest_input.clone_from(&input);
             }
-            report.execs += 1;
-            match outcome {
-                Ok(Verdict::Accepted) => {
-                    report.accepted += 1;
-                    if exec % 16 != 0 {
-                        if pool.len() < pool_cap {
-                            pool.push(input.clone());
-                        } else {
-                            let at = rng.random_range(self.seeds.len()..pool.len());
-                            pool[at].clone_from(&input);
-                        }
-                    }
-                }
-                Ok(Verdict::Rejected) => report.rejected += 1,
-                Err(what) => {
-                    if exec % 16 == 0 && from < self.seeds.len() {
-                        report.failures.push(Failure {
-                            exec,
-                            what: format!("a valid seed input failed: {what}"),
-                            input: input.clone(),
-                        });
-                    } else {
-                        report.failures.push(Failure { exec, what, input: input.clone() });
-                    }
+            // An accepted mutant joins the pool: later executions build on what got past the checks.
+            if mutated && outcome == Ok(Verdict::Accepted) {
+                if pool.len() < pool_cap {
+                    pool.push(input.clone());
+                } else {
+                    let at = rng.random_range(self.seeds.len()..pool.len());
+                    pool[at].clone_from(&input);
                 }
             }
+            let outcome = match outcome {
+                Err(what) if !mutated => Err(format!("a valid input failed unchanged: {what}")),
+                other => other,
+            };
+            report.record(exec, outcome, &input, elapsed);
         }
         let dir = std::env::temp_dir().join("croprow-fuzz-failures");
         if std::fs::create_dir_all(&dir).is_ok() {
