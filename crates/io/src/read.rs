@@ -469,6 +469,17 @@ impl Source {
                 };
                 match event {
                     IndexedReadEvent::ReadChunkRequest { offset, length } => {
+                        // The chunk index is read from the file too: a corrupt entry must not size a
+                        // buffer (up to the record limit) past the file's end.
+                        let file_len = file.get_ref().metadata().map_or(u64::MAX, |m| m.len());
+                        if offset.checked_add(length as u64).is_none_or(|end| end > file_len) {
+                            return Some(Err(RecordingError::Corrupt {
+                                path: state.path.clone(),
+                                detail: format!(
+                                    "the chunk index points at {length} bytes at offset {offset}, past the end of the {file_len}-byte file"
+                                ),
+                            }));
+                        }
                         buf.resize(length, 0);
                         let read = file.seek(SeekFrom::Start(offset)).and_then(|_| file.read_exact(buf));
                         if let Err(e) = read {
