@@ -125,3 +125,24 @@ fn fuzz_mcap_replay_with_fallback_mount() {
     });
     let _ = std::fs::remove_file(&path);
 }
+
+/// The recording of an independent field recorder (rosbag2 layout, 4 MB), when the shared data is
+/// next to the repository (`../shared/data` or `$CROPROW_SHARED_DATA`; CI runs without it): one
+/// execution in 40 of the others' count, as each reads the whole file.
+#[test]
+fn fuzz_mcap_shared_recording() {
+    let dir = std::env::var_os("CROPROW_SHARED_DATA")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"));
+    let Ok(seed) = std::fs::read(dir.join("sample-young-corn.mcap")) else {
+        println!("fuzz mcap_shared_recording: skipped, no {}", dir.join("sample-young-corn.mcap").display());
+        return;
+    };
+    let path = scratch("shared");
+    let config = ReplayConfig::default();
+    Campaign::new("mcap_shared_recording", vec![seed], EXECS).scaled_down(40).run(|bytes| {
+        std::fs::write(&path, bytes).map_err(|e| format!("scratch file: {e}"))?;
+        replay(&path, &config, bytes.len())
+    });
+    let _ = std::fs::remove_file(&path);
+}

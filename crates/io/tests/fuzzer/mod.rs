@@ -277,6 +277,12 @@ impl Campaign {
         }
     }
 
+    /// Runs `1 / divisor` of the executions (at least one): for seeds that cost more per execution.
+    pub fn scaled_down(mut self, divisor: usize) -> Self {
+        self.execs = (self.execs / divisor.max(1)).max(1);
+        self
+    }
+
     /// Tokens inserted whole (keywords, numbers, separators of text formats).
     pub fn dictionary(mut self, tokens: &[&[u8]]) -> Self {
         self.dictionary = tokens.iter().map(|t| t.to_vec()).collect();
