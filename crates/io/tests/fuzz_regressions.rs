@@ -72,3 +72,43 @@ fn ply_ascii_list_length_past_its_line_is_refused_not_a_panic() {
     let _ = std::fs::remove_file(&path);
     assert!(err.contains("PLY vertex 1: list length `18446744073709551616`"), "{err}");
 }
+
+/// A chunk index entry whose length runs past the end of the file: the indexed reader sized a
+/// buffer for it (up to 256 MiB) before the read failed. Now refused as `Corrupt` first. Found while
+/// reading the code behind the slowest `fuzz_mcap` executions, built here from a committed recording.
+#[test]
+fn mcap_chunk_index_past_the_end_of_the_file_is_corrupt() {
+    let mut bytes =
+        std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/xyz_f32.mcap")).unwrap();
+    // Walk the top-level records (opcode u8, length u64 LE) to the first chunk index (0x08). Its body:
+    // 4 u64 (times, chunk offset, chunk length), the message index offsets (u32 byte length, then
+    // entries), the message index length (u64), the compression (u32 length, then text), and the
+    // compressed size (u64): the length the reader asks for.
+    let u32_at = |b: &[u8], i: usize| u32::from_le_bytes(b[i..i + 4].try_into().unwrap()) as usize;
+    let mut at = 8;
+    let patched = loop {
+        let Some(&opcode) = bytes.get(at) else { break false };
+        let len = u64::from_le_bytes(bytes[at + 1..at + 9].try_into().unwrap()) as usize;
+        if opcode == 0x08 {
+            let offsets = at + 9 + 32;
+            let compression = offsets + 4 + u32_at(&bytes, offsets) + 8;
+            let size = compression + 4 + u32_at(&bytes, compression);
+            bytes[size..size + 8].copy_from_slice(&(200u64 << 20).to_le_bytes());
+            break true;
+        }
+        at += 9 + len;
+    };
+    assert!(patched, "the recording has a chunk index");
+    let path = std::env::temp_dir().join(format!("croprow-regression-{}-index.mcap", std::process::id()));
+    std::fs::write(&path, &bytes).unwrap();
+    let recording = Recording::open(&path).unwrap();
+    assert!(recording.is_indexed());
+    let result = recording.replay(&ReplayConfig::default()).map(|mut r| r.next_scan().map(|s| s.map(|_| ())));
+    let _ = std::fs::remove_file(&path);
+    let detail = match result {
+        Err(RecordingError::Corrupt { detail, .. })
+        | Ok(Some(Err(RecordingError::Corrupt { detail, .. }))) => detail,
+        other => panic!("{other:?}"),
+    };
+    assert!(detail.contains("past the end of the"), "{detail}");
+}
