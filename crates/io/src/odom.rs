@@ -34,6 +34,14 @@ pub enum PoseGap {
         /// Sample after, s.
         after_s: f64,
     },
+    /// The samples are finite but so far apart (coordinates near `f64::MAX`) that the interpolated
+    /// pose overflows: corrupt odometry, no pose.
+    Overflow {
+        /// Sample before, s.
+        before_s: f64,
+        /// Sample after, s.
+        after_s: f64,
+    },
 }
 
 impl fmt::Display for PoseGap {
@@ -46,6 +54,12 @@ impl fmt::Display for PoseGap {
             PoseGap::AfterLast { last_s } => write!(f, "after the last odometry sample ({last_s:.3} s)"),
             PoseGap::Gap { before_s, after_s } => {
                 write!(f, "inside an odometry gap ({before_s:.3} s .. {after_s:.3} s)")
+            }
+            PoseGap::Overflow { before_s, after_s } => {
+                write!(
+                    f,
+                    "odometry between {before_s:.3} s and {after_s:.3} s interpolates to a non-finite pose"
+                )
             }
         }
     }
@@ -100,8 +114,14 @@ impl History {
         }
     }
 
-    /// The pose at `stamp_s`.
+    /// The pose at `stamp_s`; always finite ([`PoseGap::Overflow`] otherwise).
     pub fn pose_at(&self, stamp_s: f64) -> Result<Pose2, PoseGap> {
+        let ((a, b), pose) = self.blend_at(stamp_s)?;
+        if pose.is_finite() { Ok(pose) } else { Err(PoseGap::Overflow { before_s: a, after_s: b }) }
+    }
+
+    /// The blended pose at `stamp_s` and the stamps of the two samples it came from.
+    fn blend_at(&self, stamp_s: f64) -> Result<((f64, f64), Pose2), PoseGap> {
         let (Some(&first), Some(&last)) = (self.samples.front(), self.samples.back()) else {
             return Err(PoseGap::NoOdometry);
         };
@@ -110,14 +130,15 @@ impl History {
                 return Err(PoseGap::BeforeFirst { first_s: first.0 });
             }
             let second = self.samples.get(1).copied().unwrap_or(first);
-            return Ok(blend(first, second, stamp_s));
+            return Ok(((first.0, second.0), blend(first, second, stamp_s)));
         }
         if stamp_s > last.0 {
             if stamp_s - last.0 > self.max_extrapolation_s {
                 return Err(PoseGap::AfterLast { last_s: last.0 });
             }
             let before = self.samples.len().checked_sub(2).and_then(|i| self.samples.get(i)).copied();
-            return Ok(blend(before.unwrap_or(last), last, stamp_s));
+            let before = before.unwrap_or(last);
+            return Ok(((before.0, last.0), blend(before, last, stamp_s)));
         }
         // First sample at or after the stamp; the one before it brackets the stamp.
         let i = self.samples.partition_point(|s| s.0 < stamp_s);
@@ -126,7 +147,7 @@ impl History {
         if after.0 - before.0 > self.max_gap_s {
             return Err(PoseGap::Gap { before_s: before.0, after_s: after.0 });
         }
-        Ok(blend(before, after, stamp_s))
+        Ok(((before.0, after.0), blend(before, after, stamp_s)))
     }
 }
 
@@ -192,6 +213,15 @@ mod tests {
         assert_eq!(h.push(1.05, Pose2::default()), Err(Backwards { previous_s: 1.1, stamp_s: 1.05 }));
         assert!(h.push(1.1, Pose2::default()).is_ok());
         assert_eq!(h.pose_at(1.1).unwrap(), Pose2::new(1.0, 2.0, -3.0));
+    }
+
+    #[test]
+    fn overflowing_interpolation_is_a_gap_not_infinity() {
+        let mut h = History::new(0.05, 0.5);
+        h.push(1.0, Pose2::new(f64::MAX, 0.0, 0.0)).unwrap();
+        h.push(1.1, Pose2::new(f64::MIN, 0.0, 0.0)).unwrap();
+        assert_eq!(h.pose_at(1.05), Err(PoseGap::Overflow { before_s: 1.0, after_s: 1.1 }));
+        assert_eq!(h.pose_at(1.0).unwrap().x, f64::MAX);
     }
 
     #[test]

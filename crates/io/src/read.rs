@@ -392,6 +392,7 @@ impl Recording {
             None => Source::Linear {
                 reader: LinearReader::new_with_options(
                     LinearReaderOptions::default()
+                        .with_emit_chunks(true)
                         .with_validate_chunk_crcs(true)
                         .with_record_length_limit(MAX_RECORD_BYTES),
                 ),
@@ -468,6 +469,17 @@ impl Source {
                 };
                 match event {
                     IndexedReadEvent::ReadChunkRequest { offset, length } => {
+                        // The chunk index is read from the file too: a corrupt entry must not size a
+                        // buffer (up to the record limit) past the file's end.
+                        let file_len = file.get_ref().metadata().map_or(u64::MAX, |m| m.len());
+                        if offset.checked_add(length as u64).is_none_or(|end| end > file_len) {
+                            return Some(Err(RecordingError::Corrupt {
+                                path: state.path.clone(),
+                                detail: format!(
+                                    "the chunk index points at {length} bytes at offset {offset}, past the end of the {file_len}-byte file"
+                                ),
+                            }));
+                        }
                         buf.resize(length, 0);
                         let read = file.seek(SeekFrom::Start(offset)).and_then(|_| file.read_exact(buf));
                         if let Err(e) = read {
@@ -496,28 +508,113 @@ impl Source {
                     }
                     LinearReadEvent::Record { data, opcode } => match mcap::parse_record(opcode, data) {
                         Err(e) => Some(Err(state.mcap_error(e))),
-                        Ok(mcap::records::Record::Schema { header, .. }) => {
-                            schemas.insert(header.id, (header.name, header.encoding));
-                            Some(Ok(()))
+                        Ok(mcap::records::Record::Chunk { header, data: body }) => {
+                            Some(read_chunk(&header, &body, data, schemas, state, tf_only))
                         }
-                        Ok(mcap::records::Record::Channel(c)) => {
-                            let (schema_name, _) = schemas.get(&c.schema_id).cloned().unwrap_or_default();
-                            let channel =
-                                Channel { topic: c.topic, schema_name, encoding: c.message_encoding };
-                            if let Err(e) = state.add_channel(c.id, channel) {
-                                return Some(Err(e));
-                            }
-                            Some(Ok(()))
-                        }
-                        Ok(mcap::records::Record::Message { header, data }) => {
-                            Some(state.handle(header.channel_id, header.log_time, &data, tf_only))
-                        }
-                        Ok(_) => Some(Ok(())),
+                        Ok(record) => Some(read_record(record, schemas, state, tf_only)),
                     },
                 }
             }
         }
     }
+}
+
+/// Hands one non-chunk record of a front-to-back read to `state`.
+fn read_record(
+    record: mcap::records::Record<'_>,
+    schemas: &mut HashMap<u16, (String, String)>,
+    state: &mut State,
+    tf_only: bool,
+) -> Result<(), RecordingError> {
+    match record {
+        mcap::records::Record::Schema { header, .. } => {
+            schemas.insert(header.id, (header.name, header.encoding));
+            Ok(())
+        }
+        mcap::records::Record::Channel(c) => {
+            let (schema_name, _) = schemas.get(&c.schema_id).cloned().unwrap_or_default();
+            state.add_channel(c.id, Channel { topic: c.topic, schema_name, encoding: c.message_encoding })
+        }
+        mcap::records::Record::Message { header, data } => {
+            state.handle(header.channel_id, header.log_time, &data, tf_only)
+        }
+        _ => Ok(()),
+    }
+}
+
+/// Reads the records of one chunk of a front-to-back read.
+///
+/// The outer reader hands over whole chunks (`record` is the chunk record's body, `body` its
+/// payload) and a second linear reader, fed only this chunk, opens it with the same record-length
+/// limit. The detour exists because mcap 0.26 trusts the length of a record inside an uncompressed
+/// chunk: one longer than what is left of its chunk underflows a counter (a panic with overflow
+/// checks, a read past the chunk without). Such chunks are refused here before they are parsed.
+fn read_chunk(
+    header: &mcap::records::ChunkHeader,
+    body: &[u8],
+    record: &[u8],
+    schemas: &mut HashMap<u16, (String, String)>,
+    state: &mut State,
+    tf_only: bool,
+) -> Result<(), RecordingError> {
+    let corrupt = |detail| RecordingError::Corrupt { path: state.path.clone(), detail };
+    if header.compression.is_empty() {
+        if header.uncompressed_size != body.len() as u64 {
+            return Err(corrupt(format!(
+                "an uncompressed chunk of {} bytes claims {}",
+                body.len(),
+                header.uncompressed_size
+            )));
+        }
+        check_chunk_records(body).map_err(corrupt)?;
+    }
+    let mut input = Vec::with_capacity(9 + record.len());
+    input.push(mcap::records::op::CHUNK);
+    input.extend_from_slice(&(record.len() as u64).to_le_bytes());
+    input.extend_from_slice(record);
+    let mut rest = input.as_slice();
+    let mut reader = LinearReader::new_with_options(
+        LinearReaderOptions::default()
+            .with_skip_start_magic(true)
+            .with_skip_end_magic(true)
+            .with_validate_chunk_crcs(true)
+            .with_record_length_limit(MAX_RECORD_BYTES),
+    );
+    while let Some(event) = reader.next_event() {
+        match event.map_err(|e| state.mcap_error(e))? {
+            LinearReadEvent::ReadRequest(n) => {
+                let k = n.min(rest.len());
+                reader.insert(k).copy_from_slice(&rest[..k]);
+                reader.notify_read(k);
+                rest = &rest[k..];
+            }
+            LinearReadEvent::Record { data, opcode } => {
+                let inner = mcap::parse_record(opcode, data).map_err(|e| state.mcap_error(e))?;
+                read_record(inner, schemas, state, tf_only)?;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Checks that every record of an uncompressed chunk (`opcode u8, length u64 LE, body`) ends inside it.
+fn check_chunk_records(mut data: &[u8]) -> Result<(), String> {
+    let mut offset = 0usize;
+    while !data.is_empty() {
+        let Some((&[opcode, l0, l1, l2, l3, l4, l5, l6, l7], rest)) = data.split_first_chunk::<9>() else {
+            return Err(format!("a record header at chunk offset {offset} is cut by the end of its chunk"));
+        };
+        let len = u64::from_le_bytes([l0, l1, l2, l3, l4, l5, l6, l7]);
+        let body = usize::try_from(len).ok().filter(|&n| n <= rest.len()).ok_or_else(|| {
+            format!(
+                "record 0x{opcode:02x} at chunk offset {offset} claims {len} bytes, the chunk has {} left",
+                rest.len()
+            )
+        })?;
+        data = &rest[body..];
+        offset += 9 + body;
+    }
+    Ok(())
 }
 
 /// A scan waiting for odometry to reach its stamp.
@@ -675,6 +772,14 @@ impl State {
                     })?;
                 Ok((mount, MountSource::TfStatic))
             }
+            // A chain that exists but overflows is a broken mount, not a missing one: no fallback.
+            Err(LookupError::NonFinite { .. }) => Err(RecordingError::BadMount {
+                frame: format!("{} -> {frame_id}", self.config.base_frame),
+                source: ConfigError::invalid(
+                    "mount",
+                    "the /tf_static chain composes to a non-finite transform",
+                ),
+            }),
             Err(e) => match self.config.fallback_mount {
                 Some(m) => Ok((m, MountSource::Fallback)),
                 None => Err(RecordingError::MissingTransform(e)),
@@ -772,5 +877,33 @@ impl Replay {
             mount,
             mount_source,
         }))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn record(opcode: u8, body: &[u8]) -> Vec<u8> {
+        let mut r = vec![opcode];
+        r.extend_from_slice(&(body.len() as u64).to_le_bytes());
+        r.extend_from_slice(body);
+        r
+    }
+
+    #[test]
+    fn chunk_records_must_end_inside_their_chunk() {
+        let mut chunk = record(0x05, &[1, 2, 3]);
+        chunk.extend(record(0x05, &[]));
+        assert_eq!(check_chunk_records(&chunk), Ok(()));
+        assert_eq!(check_chunk_records(&[]), Ok(()));
+        let cut = &chunk[..chunk.len() - 1];
+        assert!(check_chunk_records(cut).unwrap_err().contains("cut by the end"));
+        // The second record (at offset 12) claims one byte more than the chunk holds.
+        chunk[13] = 1;
+        assert!(check_chunk_records(&chunk).unwrap_err().contains("claims 1 bytes, the chunk has 0 left"));
+        // A length of 2^63 is refused, not added to an offset.
+        chunk[20] = 0x80;
+        assert!(check_chunk_records(&chunk).is_err());
     }
 }

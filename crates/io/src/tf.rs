@@ -28,6 +28,15 @@ pub enum LookupError {
         /// Every edge in the buffer, for the message.
         known: String,
     },
+    /// The chain connects the frames, but composing it overflows (translations near `f64::MAX`):
+    /// no finite transform exists.
+    #[error("the static transforms from `{target}` to `{frame}` compose to a non-finite transform")]
+    NonFinite {
+        /// The frame the result is expressed in.
+        target: String,
+        /// The frame being located.
+        frame: String,
+    },
 }
 
 /// Latest static transform per child frame: `child -> (parent, T_parent_child)`.
@@ -79,13 +88,22 @@ impl TransformBuffer {
         chain
     }
 
-    /// `T_target_source`: maps points given in `source` into `target`.
+    /// `T_target_source`: maps points given in `source` into `target`. Always finite: a chain whose
+    /// composition overflows is [`LookupError::NonFinite`].
     pub fn lookup(&self, target: &str, source: &str) -> Result<Isometry3<f64>, LookupError> {
         let up_source = self.ancestors(source);
         let up_target = self.ancestors(target);
         for (frame, t_a_target) in &up_target {
             if let Some((_, t_a_source)) = up_source.iter().find(|(f, _)| f == frame) {
-                return Ok(t_a_target.inverse() * t_a_source);
+                let t = t_a_target.inverse() * t_a_source;
+                // Each edge is finite, but a sum of translations near f64::MAX is not.
+                if !t.to_homogeneous().iter().all(|v| v.is_finite()) {
+                    return Err(LookupError::NonFinite {
+                        target: target.to_owned(),
+                        frame: source.to_owned(),
+                    });
+                }
+                return Ok(t);
             }
         }
         let mut known: Vec<String> = self.edges.iter().map(|(c, (p, _))| format!("{p} -> {c}")).collect();
@@ -148,6 +166,15 @@ mod tests {
         assert!(!b.insert(&tf("a", "b", [0.0; 3], Q { x: 0.0, y: 0.0, z: 0.0, w: 0.0 })));
         assert!(!b.insert(&tf("a", "b", [f64::NAN, 0.0, 0.0], Q::IDENTITY)));
         assert!(b.is_empty());
+    }
+
+    #[test]
+    fn overflowing_chains_are_an_error_not_infinity() {
+        let mut b = TransformBuffer::new();
+        assert!(b.insert(&tf("base_link", "mast", [f64::MAX, 0.0, 0.0], Q::IDENTITY)));
+        assert!(b.insert(&tf("mast", "velodyne", [f64::MAX, 0.0, 0.0], Q::IDENTITY)));
+        assert!(matches!(b.lookup("base_link", "velodyne"), Err(LookupError::NonFinite { .. })));
+        assert!(b.lookup("base_link", "mast").is_ok());
     }
 
     #[test]

@@ -168,11 +168,34 @@ property float x\nproperty float y\nproperty float z\nend_header\n"
 }
 
 #[test]
-fn nan_rows_are_refused() {
-    assert!(error_of("nan.txt", b"1 2 3\nnan 2 3\n").contains("point 1"));
+fn nan_rows_are_skipped_and_counted() {
+    let path = scratch("nan.txt");
+    std::fs::write(&path, b"1 2 3\nnan 2 3\n4 inf 6\n7 8 9\n").unwrap();
+    let cloud = maps::read(&path).unwrap();
+    assert_eq!(cloud.points, vec![[1.0, 2.0, 3.0], [7.0, 8.0, 9.0]]);
+    assert_eq!(cloud.non_finite, 2);
     let path = scratch("nan.ply");
     maps::write_ply(&path, &[[0.0, 0.0, 0.0], [f64::NAN, 1.0, 2.0]], PlyEncoding::Ascii).unwrap();
-    assert!(matches!(maps::read_cloud(&path), Err(Error::Invalid { .. })));
+    assert_eq!(maps::read(&path).unwrap(), maps::Cloud { points: vec![[0.0; 3]], non_finite: 1 });
+}
+
+/// PCL writes an organised cloud (one entry per beam, `HEIGHT` > 1) with NaN for missing returns.
+#[test]
+fn organised_pcd_with_missing_returns_is_read() {
+    let text = "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\n\
+TYPE F F F\nCOUNT 1 1 1\nWIDTH 3\nHEIGHT 2\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 6\nDATA ascii\n\
+1 2 3\nnan nan nan\n4 5 6\nnan nan nan\nnan nan nan\n7 8 9\n";
+    let path = scratch("organised.pcd");
+    std::fs::write(&path, text).unwrap();
+    let cloud = maps::read(&path).unwrap();
+    assert_eq!(cloud.points, vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0], [7.0, 8.0, 9.0]]);
+    assert_eq!(cloud.non_finite, 3);
+}
+
+#[test]
+fn a_cloud_of_only_missing_returns_is_refused() {
+    let err = error_of("allnan.txt", b"nan nan nan\nnan 1 2\n");
+    assert!(err.contains("no finite point (2 with NaN"), "{err}");
 }
 
 #[test]

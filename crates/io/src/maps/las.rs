@@ -1,21 +1,24 @@
 //! ASPRS LAS through the `las` crate, read in chunks so a header that lies about its point count
-//! cannot make us allocate for it.
+//! or its record length cannot make us allocate for it.
 
 use std::path::Path;
 
 use super::Error;
 
-/// Points read per chunk.
-const CHUNK: u64 = 65_536;
+/// Bytes read per chunk: 64 Ki points of a typical 20-34 byte record. The chunk is sized in bytes,
+/// not points, because the record length is a header field too (up to 64 KiB: a fixed point count
+/// would let a corrupt header ask for 4 GiB).
+const CHUNK_BYTES: usize = 2 << 20;
 
 pub(crate) fn read(path: &Path) -> Result<Vec<[f64; 3]>, Error> {
     let mut reader = ::las::Reader::from_path(path).map_err(|e| Error::invalid(path, format!("LAS: {e}")))?;
     let expected = reader.header().number_of_points();
     let mut data = ::las::PointDataBuilder::new().for_header(reader.header()).build();
+    let chunk = (CHUNK_BYTES / data.record_len().max(1)).max(1) as u64;
     let mut points = Vec::new();
     loop {
         let n = reader
-            .fill_points(CHUNK, &mut data)
+            .fill_points(chunk, &mut data)
             .map_err(|e| Error::invalid(path, format!("LAS point {}: {e}", points.len())))?;
         if n == 0 {
             break;

@@ -3,10 +3,15 @@
 //!
 //! Every reader returns `[x, y, z]` in `f64`, in the file's own frame and units (UTM-like offsets keep
 //! their precision), and refuses a file it cannot fully trust with an error naming the file and the
-//! problem: unknown or malformed header, truncated data, a non-finite coordinate, no points.
+//! problem: unknown or malformed header, truncated data, no finite point.
+//!
+//! Points with a NaN or infinite coordinate are skipped and counted ([`Cloud::non_finite`]): PCL's
+//! organised clouds keep one entry per beam and write NaN for a beam without a return, so such a
+//! point is a documented "nothing there", not damage.
 //!
 //! ```no_run
-//! let cloud = croprow_io::maps::read_cloud(std::path::Path::new("field.ply"))?;
+//! let cloud = croprow_io::maps::read(std::path::Path::new("field.pcd"))?;
+//! println!("{} points ({} without a return skipped)", cloud.points.len(), cloud.non_finite);
 //! # Ok::<(), croprow_io::maps::Error>(())
 //! ```
 
@@ -88,22 +93,43 @@ impl Format {
     }
 }
 
-/// Reads every point of a map file, the format chosen by extension.
-pub fn read_cloud(path: &Path) -> Result<Vec<[f64; 3]>, Error> {
+/// The points of a map file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Cloud {
+    /// Every point with three finite coordinates, `[x, y, z]` in the file's frame and units, in file
+    /// order.
+    pub points: Vec<[f64; 3]>,
+    /// Points skipped because a coordinate was NaN or infinite (missing returns of organised clouds).
+    pub non_finite: usize,
+}
+
+/// Reads a map file, the format chosen by extension: its finite points and how many were skipped.
+/// A file without a single finite point is an error.
+pub fn read(path: &Path) -> Result<Cloud, Error> {
     let format = Format::from_path(path).ok_or_else(|| Error::UnknownFormat { path: path.to_path_buf() })?;
-    let points = match format {
+    let mut points = match format {
         Format::Pcd => pcd::read(path)?,
         Format::Ply => ply::read(path)?,
         Format::Las => las::read(path)?,
         Format::Text => text::read(path)?,
     };
+    let total = points.len();
+    points.retain(|p| p.iter().all(|v| v.is_finite()));
+    let non_finite = total - points.len();
     if points.is_empty() {
-        return Err(Error::invalid(path, "the file holds no points"));
+        let why = if total == 0 {
+            "the file holds no points".to_owned()
+        } else {
+            format!("the file holds no finite point ({non_finite} with NaN or infinite coordinates)")
+        };
+        return Err(Error::invalid(path, why));
     }
-    if let Some(i) = points.iter().position(|p| !p.iter().all(|v| v.is_finite())) {
-        return Err(Error::invalid(path, format!("point {i} has a non-finite coordinate {:?}", points[i])));
-    }
-    Ok(points)
+    Ok(Cloud { points, non_finite })
+}
+
+/// Reads the finite points of a map file ([`read`] without the count of skipped points).
+pub fn read_cloud(path: &Path) -> Result<Vec<[f64; 3]>, Error> {
+    read(path).map(|c| c.points)
 }
 
 /// Writes points to a map file (for exchange and tests): PCD binary with `f64` fields, PLY binary

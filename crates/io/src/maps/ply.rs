@@ -275,7 +275,18 @@ fn read_ascii(
                 })?;
                 match property {
                     Property::Scalar { .. } => t += 1,
-                    Property::List { .. } => t += 1 + v.max(0.0) as usize,
+                    Property::List { .. } => {
+                        // The count is followed by that many items on the same line: anything but a
+                        // whole number that fits the line is a lie (and must not overflow `t`).
+                        let items = tokens.len() - t - 1;
+                        if !(v >= 0.0 && v.fract() == 0.0 && v <= items as f64) {
+                            return Err(Error::invalid(
+                                path,
+                                format!("PLY vertex {i}: list length `{token}` with {items} values after it"),
+                            ));
+                        }
+                        t += 1 + v as usize;
+                    }
                 }
                 values.push(v);
             }
