@@ -33,15 +33,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let out =
         std::fs::File::create(&args.out).with_context(|| format!("cannot write {}", args.out.display()))?;
     let started = Instant::now();
-    let extracted = maps::read_cloud(&args.cloud).map_err(anyhow::Error::from).and_then(|cloud| {
+    let extracted = maps::read(&args.cloud).map_err(anyhow::Error::from).and_then(|cloud| {
         let read_s = started.elapsed().as_secs_f64();
         let started = Instant::now();
         let map = extractor
-            .extract(&cloud)
+            .extract(&cloud.points)
             .with_context(|| format!("no rows extracted from {}", args.cloud.display()))?;
-        Ok((cloud.len(), read_s, map, started.elapsed().as_secs_f64()))
+        Ok((cloud.points.len(), cloud.non_finite, read_s, map, started.elapsed().as_secs_f64()))
     });
-    let (points, read_s, map, extract_s) = match extracted {
+    let (points, non_finite, read_s, map, extract_s) = match extracted {
         Ok(done) => done,
         Err(e) => {
             // No half-made output: the empty file opened above goes.
@@ -56,7 +56,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .and_then(|()| out.flush().map_err(anyhow::Error::from))
         .with_context(|| format!("cannot write {}", args.out.display()))?;
     eprintln!(
-        "{}: {} points read in {read_s:.2} s; {} rows, spacing {:.3} m, direction {:.1}°, slice {:.2}-{:.2} m above ground \
+        "{}: {} points read in {read_s:.2} s ({non_finite} non-finite skipped); {} rows, spacing {:.3} m, direction {:.1}°, slice {:.2}-{:.2} m above ground \
          (periodicity {:.2}), extracted in {extract_s:.2} s -> {}",
         args.cloud.display(),
         points,
