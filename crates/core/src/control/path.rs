@@ -119,6 +119,18 @@ impl Path {
         self.push(start, length_m, curvature_per_m);
     }
 
+    /// Removes the first segment (a leg that is done) and returns its length, m; arc lengths then
+    /// count from the new first segment. In place: nothing is allocated.
+    pub fn pop_front(&mut self) -> Option<f64> {
+        if self.segments.is_empty() {
+            return None;
+        }
+        let done = self.segments.remove(0).length_m;
+        self.starts_m.remove(0);
+        self.starts_m.iter_mut().for_each(|s0| *s0 -= done);
+        Some(done)
+    }
+
     /// The segments, in order.
     pub fn segments(&self) -> &[Segment] {
         &self.segments
@@ -236,5 +248,22 @@ mod tests {
         let end = p.pose_at(total);
         assert!((end.yaw.abs() - std::f64::consts::PI).abs() < 1e-9);
         assert!((end.y - (2.0 * r + 0.3)).abs() < 1e-9 && (end.x - (-3.0)).abs() < 1e-9);
+    }
+
+    #[test]
+    fn popping_a_done_leg_rebases_the_arc_length() {
+        let mut p = Path::with_capacity(3);
+        p.push(Pose2::new(0.0, 0.0, 0.0), 2.0, 0.0);
+        p.push(Pose2::new(2.0, 0.0, FRAC_PI_2), 1.5, 0.0);
+        let corner_to_end = p.pose_at(3.5);
+        assert_eq!(p.pop_front(), Some(2.0));
+        assert_eq!(p.segments().len(), 1);
+        assert!((p.length_m() - 1.5).abs() < 1e-12);
+        // The same place on the path, now 1.5 m from its start (arithmetic: 1e-12).
+        let e = p.pose_at(1.5);
+        assert!((e.x - corner_to_end.x).abs() < 1e-12 && (e.y - corner_to_end.y).abs() < 1e-12);
+        assert_eq!(p.pop_front(), Some(1.5));
+        assert_eq!(p.pop_front(), None);
+        assert!(p.is_empty());
     }
 }
