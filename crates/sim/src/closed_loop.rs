@@ -268,7 +268,7 @@ pub fn sim_navigator() -> NavigatorConfig {
 
 /// The navigator configuration a scenario's run uses: `base` with the lane-switch geometry of the
 /// field (`lane_switch.row_spacing_m`) and of the robot (wheel positions and tyre patches, which set
-/// where a headland turn may start), and the number of lanes of the mission (`lane_switch.lanes`).
+/// where a headland turn may start and the MPC's wheel corridor), and the number of lanes of the mission (`lane_switch.lanes`).
 pub fn navigator_config(scenario: &Scenario, base: &NavigatorConfig, run: &RunConfig) -> NavigatorConfig {
     let mut cfg = base.clone();
     cfg.lane_switch.row_spacing_m = scenario.field.row_spacing_m;
@@ -277,6 +277,9 @@ pub fn navigator_config(scenario: &Scenario, base: &NavigatorConfig, run: &RunCo
     cfg.lane_switch.wheel_y_m = 0.5 * robot.track_m;
     cfg.lane_switch.tire_width_m = robot.tire_width_m;
     cfg.lane_switch.tire_length_m = robot.contact_length_m;
+    cfg.mpc.wheel_x_m = cfg.lane_switch.wheel_x_m;
+    cfg.mpc.wheel_y_m = cfg.lane_switch.wheel_y_m;
+    cfg.mpc.tire_width_m = robot.tire_width_m;
     cfg.lane_switch.lanes = if run.lanes > 0 { run.lanes } else { lanes_to_edge(scenario, &cfg) };
     cfg
 }

@@ -65,12 +65,22 @@ fn recovers_from_a_start_0_3_m_and_8_degrees_off_within_3_m() {
     eprintln!("recovery: {m:?}");
     let settle = m.settle_distance_m.expect("settles under 2 cm");
     assert!(settle <= 3.0, "settled after {settle:.2} m");
-    // 0.3 m off puts the left tyre (0.762 m out, 0.15 m wide) on the row 1.125 m out at the start,
-    // heading 8° towards it: the plants under it at the start and in the first metre, while the robot
-    // turns away, are run over (measured: 2 at the start, 11 in all). None after that.
+    // Issue 4 asks for no crop contact; this start makes some unavoidable. Tyres 0.15 m wide at ±0.762 m
+    // stay off the rows (±0.375 m, ±1.125 m from the centre line) only while each tyre centre keeps
+    // 0.45-1.05 m from the centre line: a robot y to the left with heading ψ needs
+    // y + 0.61·|sin ψ| ≤ 0.288 m for its left tyres (front ones when ψ > 0, rear ones when ψ < 0).
+    // * The start pose (y = 0.3, ψ = 8°) already has the front-left tyre on the row at 1.125 m and the
+    //   front-right one on the lane's right row: 0.24 m of row line under tyre patches, 1.4 plants at
+    //   0.17 m spacing on average.
+    // * At y = 0.3 no heading clears the left tyres, and only driving forward with ψ < 0 reduces y,
+    //   which swings the rear-left tyre onto the row: some row length is always run over. A search
+    //   over pivot-drive-pivot-drive manoeuvres of a forward-only unicycle finds at least 1.33 m of
+    //   row line under the tyres, 7.8 plants on average.
+    // Measured with the MPC's wheel corridor: 10 (row line run over 1.68 m; 13 without the corridor),
+    // all in the first metre, then none.
     let after_first_metre = run.samples.iter().find(|s| s.distance_m >= 1.0).map(|s| s.crop_contacts);
     assert_eq!(after_first_metre, Some(m.crop_contacts), "{m:?}");
-    assert!(m.crop_contacts <= 12, "{m:?}");
+    assert!(m.crop_contacts <= 10, "{m:?}");
 }
 
 #[test]

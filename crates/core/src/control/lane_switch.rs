@@ -757,9 +757,11 @@ impl LaneSwitcher {
         let rel = c.relative(&entry.start);
         // entry.start expressed on the detected line: its foot point, with the line's heading.
         let foot = c.compose(&Pose2::new(rel.x, 0.0, 0.0));
-        // While entering, the entry straight is all that is left of the turn.
+        // While entering, the entry straight is all that is left of the turn: the centre line of the
+        // lane the detector sees.
         self.turn.clear();
         self.turn.push(foot, entry.length_m, 0.0);
+        self.turn.set_row_spacing(Some(self.cfg.row_spacing_m));
     }
 
     fn enter(&mut self, odom: &Pose2, detection: Option<&Detection>) {

@@ -87,23 +87,39 @@ pub struct Frenet {
 
 /// A chain of segments in `odom`. Capacity is reserved once; [`Path::clear`] and [`Path::push`]
 /// then reuse it, so rebuilding a path every scan allocates nothing.
+///
+/// A path along a lane's centre line may say so ([`Path::set_row_spacing`]): crop rows then run
+/// parallel to it, `(k + ½)·spacing` to either side, and the MPC keeps the tyres between them.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Path {
     segments: Vec<Segment>,
     /// Arc length at the start of each segment, m.
     starts_m: Vec<f64>,
+    row_spacing_m: Option<f64>,
 }
 
 impl Path {
     /// An empty path with room for `n` segments.
     pub fn with_capacity(n: usize) -> Self {
-        Self { segments: Vec::with_capacity(n), starts_m: Vec::with_capacity(n) }
+        Self { segments: Vec::with_capacity(n), starts_m: Vec::with_capacity(n), row_spacing_m: None }
     }
 
-    /// Removes all segments, keeping the capacity.
+    /// Removes all segments and the row spacing, keeping the capacity.
     pub fn clear(&mut self) {
         self.segments.clear();
         self.starts_m.clear();
+        self.row_spacing_m = None;
+    }
+
+    /// Declares the path a lane centre line between crop rows `spacing_m` apart (`None`: no rows
+    /// along it, e.g. a headland turn). A spacing that is not finite and positive counts as `None`.
+    pub fn set_row_spacing(&mut self, spacing_m: Option<f64>) {
+        self.row_spacing_m = spacing_m.filter(|s| s.is_finite() && *s > 0.0);
+    }
+
+    /// Spacing of the crop rows the path runs between, m, when it is a lane centre line.
+    pub fn row_spacing_m(&self) -> Option<f64> {
+        self.row_spacing_m
     }
 
     /// Appends a segment starting at `start`.
