@@ -256,7 +256,8 @@ pub struct Tick<'a> {
 /// 0.3): the simulated tyres scrub, so the wheels report a pivot 1.3 times too fast, a steady error the
 /// filter must not average in. Measured on the `full-field` run: 0.3 turned the odometry heading by
 /// 0.08-0.12 rad in each pair of headland pivots (and a lane entry was refused as the wrong lane);
-/// 1 by at most 0.04 rad, as much as the heading drifts along one 30 m lane.
+/// 1 by at most 0.04 rad, as much as the heading drifts along one 30 m lane. Row following gains too:
+/// 20 m of grown soybean went from 1.52 to 1.37 cm cross-track.
 pub fn sim_navigator() -> NavigatorConfig {
     let ekf = EkfConfig {
         wheel_yaw_rate_per_speed: 3.0,

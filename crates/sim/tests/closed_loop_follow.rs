@@ -45,11 +45,12 @@ fn young_soybean_follows_at_least_as_well_as_the_paper() {
 
 #[test]
 fn grown_soybean_follows_within_the_measured_bound() {
-    // Known gap (issue 4): the paper reports 1.24 cm over 200 m. We measure 1.22 cm over 200 m
-    // (`croprow evaluate`), but 1.52 cm over this 20 m run and 1.29 cm over 60 m: the start of a lane on a
-    // closed soybean canopy is not yet as steady as the paper's. This bound guards what is measured now
-    // against regressions; beating 1.24 cm on short runs is open work.
-    beats_the_paper("grown-soybean", 1.6);
+    // Known gap (issue 4): the paper reports 1.24 cm over 200 m; this 20 m run measures 1.37 cm. It was
+    // 1.52 cm while the simulator's EKF trusted the wheel yaw rate in turns (`ekf.wheel_yaw_rate_slip`
+    // 0.3, see `closed_loop::sim_navigator`): the scrubbing tyres over-read the corrections made at the
+    // start of a lane on the closed canopy. This bound guards what is measured now against regressions;
+    // beating 1.24 cm on short runs is open work.
+    beats_the_paper("grown-soybean", 1.4);
 }
 
 #[test]
