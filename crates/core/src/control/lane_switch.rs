@@ -375,7 +375,8 @@ impl Mode {
 pub struct Guidance {
     /// Current mode.
     pub mode: Mode,
-    /// Cruise speed for the MPC along [`LaneSwitcher::path`], m/s; 0 when stopped.
+    /// Cruise speed for the MPC along [`LaneSwitcher::path`], m/s; 0 when stopped or pivoting, and
+    /// braking (at `stop_decel_mps2`) towards a pivot or the end of the mission.
     pub speed_mps: f64,
     /// True on the step the caller must reset the detector (its row memory belongs to the old lane).
     pub reset_detector: bool,
