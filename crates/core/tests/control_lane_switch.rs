@@ -194,8 +194,8 @@ fn reaching_the_row_end_starts_clearing_then_turning_with_a_detector_reset() {
     sw.update(&pose, Some(&f.detect(0.0, &pose)));
     let mut resets = 0;
     let mut modes = vec![];
-    // Walk along the lane centre in 5 cm steps to 1 m past the row end.
-    while pose.x < f.length_m + 1.0 {
+    // Walk along the lane centre in 5 cm steps to 1.5 m past the row end.
+    while pose.x < f.length_m + 1.5 {
         pose.x += 0.05;
         let g = sw.update(&pose, Some(&f.detect(0.0, &pose)));
         resets += usize::from(g.reset_detector);
@@ -212,12 +212,73 @@ fn reaching_the_row_end_starts_clearing_then_turning_with_a_detector_reset() {
     }
     assert_eq!(modes, vec![Mode::Following, Mode::ClearingRowEnd, Mode::Turning]);
     assert_eq!(resets, 1);
-    // The planned turn goes right (first_turn default) by two row spacings.
+    // The planned turn pivots right (first_turn default) at the turn start, crosses two row spacings
+    // and pivots again into the next lane (arithmetic: 1e-9).
     let path = sw.path().unwrap();
-    let s_entry: f64 = path.segments().iter().take(3).map(|s| s.length_m).sum();
-    let entry = path.pose_at(s_entry);
+    let start = LaneSwitchConfig::default().turn_start_m();
+    let [sideways, entry] = path.segments() else { panic!("{:?}", path.segments()) };
+    assert!((sideways.start.x - (f.length_m + start)).abs() < 1e-9, "{sideways:?}");
+    assert!((sideways.start.yaw + std::f64::consts::FRAC_PI_2).abs() < 1e-9);
+    let entry = entry.start;
+    assert!((entry.x - (f.length_m + start)).abs() < 1e-9, "{entry:?}");
     assert!((entry.y - (lane_start(0).y - 2.0 * SPACING)).abs() < 1e-9, "{entry:?}");
     assert!((entry.yaw.abs() - std::f64::consts::PI).abs() < 1e-9);
+}
+
+/// Walks the robot exactly along the turn path, 5 cm a step (a pivot done in one step), until the
+/// switcher leaves `Turning`; returns the last pose.
+fn walk_turn(sw: &mut LaneSwitcher) -> Pose2 {
+    let mut pose = Pose2::default();
+    for _ in 0..1000 {
+        if sw.mode() != Mode::Turning {
+            break;
+        }
+        let path = sw.path().unwrap().clone();
+        let s = (sw.progress_m() + 0.05).min(path.segments()[0].length_m);
+        pose = path.pose_at(s);
+        let g = sw.update(&pose, None);
+        if g.mode == Mode::Turning {
+            assert!(g.speed_mps <= LaneSwitchConfig::default().turn_speed_mps);
+        }
+    }
+    pose
+}
+
+#[test]
+fn a_pivot_turn_stands_still_while_turning_and_brakes_into_each_corner() {
+    let f = field();
+    let mut sw = switcher(LaneSwitchConfig::default());
+    let mut pose = lane_start(0);
+    sw.update(&pose, Some(&f.detect(0.0, &pose)));
+    let mut speeds = vec![];
+    while sw.mode() != Mode::Turning {
+        pose.x += 0.01;
+        speeds.push((pose.x, sw.update(&pose, Some(&f.detect(0.0, &pose))).speed_mps));
+    }
+    // Clearing the row end brakes at stop_decel_mps2 to a stop at the turn start (within 2 cm):
+    // 0.3 m/s needs 0.18 m at 0.25 m/s², so 10 cm before the start the speed is √(2·0.25·0.1).
+    let cfg = LaneSwitchConfig::default();
+    let stop_x = f.length_m + cfg.turn_start_m();
+    assert!((pose.x - stop_x).abs() <= 0.021, "turn began at x {}", pose.x);
+    let (_, v) = speeds.iter().copied().find(|(x, _)| (x - (stop_x - 0.1)).abs() < 0.005).unwrap();
+    assert!((v - (2.0f64 * 0.25 * 0.1).sqrt()).abs() < 0.02, "{v}");
+    // Heading still along the row: pivot on the spot.
+    let g = sw.update(&pose, None);
+    assert_eq!((g.mode, g.speed_mps), (Mode::Turning, 0.0));
+    // Turned onto the sideways leg: drive, braking into the next corner.
+    let leg = sw.path().unwrap().segments()[0];
+    let g = sw.update(&leg.start, None);
+    assert_eq!((g.mode, g.speed_mps), (Mode::Turning, cfg.turn_speed_mps));
+    let g = sw.update(&leg.pose_at(leg.length_m - 0.05), None);
+    assert!((g.speed_mps - (2.0f64 * 0.25 * 0.05).sqrt()).abs() < 1e-6, "{g:?}");
+    // At the corner: pivot again, then enter.
+    let g = sw.update(&leg.end(), None);
+    assert_eq!((g.mode, g.speed_mps), (Mode::Turning, 0.0));
+    let entry = sw.path().unwrap().segments()[0];
+    assert_eq!(sw.path().unwrap().segments().len(), 1);
+    let g = sw.update(&entry.start, None);
+    assert_eq!(g.mode, Mode::Entering);
+    assert!(g.reset_detector);
 }
 
 #[test]
@@ -230,15 +291,8 @@ fn entering_a_lane_that_is_not_the_planned_one_stops() {
         pose.x += 0.05;
         sw.update(&pose, Some(&f.detect(0.0, &pose)));
     }
-    // Place the robot at the end of the turn, then show it rows centred half a lane off the plan.
-    let path = sw.path().unwrap().clone();
-    let s_entry: f64 = path.segments().iter().take(3).map(|s| s.length_m).sum();
-    let at_entry = path.pose_at(s_entry + 0.01);
-    let mut s = 0.0;
-    while s < s_entry + 0.01 {
-        s += 0.05;
-        sw.update(&path.pose_at(s.min(s_entry + 0.01)), None);
-    }
+    // Walk the robot through the turn, then show it rows centred half a lane off the plan.
+    let at_entry = walk_turn(&mut sw);
     assert_eq!(sw.mode(), Mode::Entering);
     // 0.3 m off: the rows then imply a centre line beyond the 0.25 m tolerance.
     let shifted = Pose2::new(at_entry.x, at_entry.y + 0.3, at_entry.yaw);

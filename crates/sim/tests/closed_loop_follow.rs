@@ -45,11 +45,12 @@ fn young_soybean_follows_at_least_as_well_as_the_paper() {
 
 #[test]
 fn grown_soybean_follows_within_the_measured_bound() {
-    // Known gap (issue 4): the paper reports 1.24 cm over 200 m. We measure 1.22 cm over 200 m
-    // (`croprow evaluate`), but 1.52 cm over this 20 m run and 1.29 cm over 60 m: the start of a lane on a
-    // closed soybean canopy is not yet as steady as the paper's. This bound guards what is measured now
-    // against regressions; beating 1.24 cm on short runs is open work.
-    beats_the_paper("grown-soybean", 1.6);
+    // Known gap (issue 4): the paper reports 1.24 cm over 200 m; this 20 m run measures 1.37 cm. It was
+    // 1.52 cm while the simulator's EKF trusted the wheel yaw rate in turns (`ekf.wheel_yaw_rate_slip`
+    // 0.3, see `closed_loop::sim_navigator`): the scrubbing tyres over-read the corrections made at the
+    // start of a lane on the closed canopy. This bound guards what is measured now against regressions;
+    // beating 1.24 cm on short runs is open work.
+    beats_the_paper("grown-soybean", 1.4);
 }
 
 #[test]
@@ -65,12 +66,22 @@ fn recovers_from_a_start_0_3_m_and_8_degrees_off_within_3_m() {
     eprintln!("recovery: {m:?}");
     let settle = m.settle_distance_m.expect("settles under 2 cm");
     assert!(settle <= 3.0, "settled after {settle:.2} m");
-    // 0.3 m off puts the left tyre (0.762 m out, 0.15 m wide) on the row 1.125 m out at the start,
-    // heading 8° towards it: the plants under it at the start and in the first metre, while the robot
-    // turns away, are run over (measured: 2 at the start, 11 in all). None after that.
+    // Issue 4 asks for no crop contact; this start makes some unavoidable. Tyres 0.15 m wide at ±0.762 m
+    // stay off the rows (±0.375 m, ±1.125 m from the centre line) only while each tyre centre keeps
+    // 0.45-1.05 m from the centre line: a robot y to the left with heading ψ needs
+    // y + 0.61·|sin ψ| ≤ 0.288 m for its left tyres (front ones when ψ > 0, rear ones when ψ < 0).
+    // * The start pose (y = 0.3, ψ = 8°) already has the front-left tyre on the row at 1.125 m and the
+    //   front-right one on the lane's right row: 0.24 m of row line under tyre patches, 1.4 plants at
+    //   0.17 m spacing on average.
+    // * At y = 0.3 no heading clears the left tyres, and only driving forward with ψ < 0 reduces y,
+    //   which swings the rear-left tyre onto the row: some row length is always run over. A search
+    //   over pivot-drive-pivot-drive manoeuvres of a forward-only unicycle finds at least 1.33 m of
+    //   row line under the tyres, 7.8 plants on average.
+    // Measured with the MPC's wheel corridor: 10 (row line run over 1.68 m; 13 without the corridor),
+    // all in the first metre, then none.
     let after_first_metre = run.samples.iter().find(|s| s.distance_m >= 1.0).map(|s| s.crop_contacts);
     assert_eq!(after_first_metre, Some(m.crop_contacts), "{m:?}");
-    assert!(m.crop_contacts <= 12, "{m:?}");
+    assert!(m.crop_contacts <= 10, "{m:?}");
 }
 
 #[test]

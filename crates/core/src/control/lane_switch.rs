@@ -21,18 +21,34 @@
 //!
 //! # The headland turn and what is bounded
 //! Beyond the paper's open-loop PID turns (Sec. III-B), the turn is a path in `odom` tracked by the
-//! same MPC: from the centre line at the point where every wheel has cleared the row end, a quarter
-//! arc of radius `r`, a straight of `shift − 2r`, a second quarter arc turning the same way, then a
-//! straight back into the field along the next lane, `shift = 2 · row_spacing · lane_step` to the side.
-//! The row end is a line across the rows through the end of the canopy (the field's headland edge is
-//! assumed square, so the next lane ends on the same line).
+//! same MPC: from the centre line `d₀` past the row end, a quarter arc of radius `r`, a straight of
+//! `shift − 2r`, a second quarter arc turning the same way, then a straight back into the field along
+//! the next lane, `shift = 2 · row_spacing · lane_step` to the side. With `r = 0` (the default: a
+//! skid-steer turns on the spot) the arcs become pivots: the robot brakes to a stop at `d₀`, turns in
+//! place until it heads along the straight, drives it, stops and pivots again into the next lane. A
+//! pivot is a corner of the path; the MPC tracks the leg after it with zero cruise speed, so it turns
+//! on the spot under the same bounds on ω and ω̇. The row end is a line across the rows through the
+//! end of the crop (the field's headland edge is assumed square, so the next lane ends on the same
+//! line).
 //!
-//! Bounded, with `d` the along-row distance of `base_link` past the row-end line:
-//! * the turn starts at `d₀ = wheel_x + clearance_margin` (the rear wheels are past the last plant),
-//! * the planned maximum of `d` is `d₀ + r ≤ max_headland_excursion_m` (checked at construction),
-//! * every wheel stays past the row end during the arcs: `d₀ − √(wheel_x² + (wheel_y − r)²) ≥ 0`
-//!   (checked at construction), so no wheel is swept over a plant while the robot is not aligned
-//!   with the rows.
+//! Bounded, with `d` the along-row distance of `base_link` past the row-end line and the tyre patches
+//! (`tire_length × tire_width` at `(±wheel_x, ±wheel_y)`) the parts that crush plants:
+//! * during an arc the inner tyres swing backwards round the turning centre, `r` to the side of the
+//!   centre line; the farthest patch corner is `ρ = √((wheel_x + l/2)² + (|wheel_y − r| + w/2)²)` from
+//!   it, and the plants nearest to it stand on the row line `m` to its side (rows lie `(k + ½)·spacing`
+//!   either side of the centre line). No plant is in that reach when `d₀ ≥ √(ρ² − m²)`;
+//! * sideways between the arcs the tyres are `wheel_y + w/2 − r` behind `base_link` along the rows,
+//!   and with arcs the outer rear tyre starts `wheel_x + l/2` behind it and moves across the rows;
+//! * so the turn starts at `d₀` = the largest of these plus `clearance_margin_m`
+//!   ([`LaneSwitchConfig::turn_start_m`]), and the planned maximum of `d`, `d₀ + r`, must not exceed
+//!   `max_headland_excursion_m` (checked at construction). With the Amiga-like defaults a pivot
+//!   gives `d₀ = √(1.072² − 0.375²) + 0.15 = 1.15 m`, the smallest of all radii (`d₀ + r` grows with `r`).
+//!
+//! The row end comes from the detector: where the canopy of the lane ends, to the resolution of its
+//! map bins, which places it up to a bin plus the leaves' overhang past the last plant. When the
+//! farthest centroid of the lane's rows lies within `row_end_window_m` before that edge, the row end
+//! is put at that centroid instead: the centre of the last plants' canopy, a better estimate of where
+//! the stems end.
 
 use std::f64::consts::FRAC_PI_2;
 
@@ -87,14 +103,29 @@ pub struct LaneSwitchConfig {
     pub turn_speed_mps: f64,
     /// Speed while entering a new lane, m/s. Default 0.2.
     pub entry_speed_mps: f64,
-    /// Radius of the two quarter arcs of the headland turn, m. Default 0.6.
+    /// Radius of the two quarter arcs of the headland turn, m; 0 pivots in place, the turn that stays
+    /// nearest to the row end (see the module docs). Default 0 (a skid-steer).
     pub turn_radius_m: f64,
-    /// Extra distance past the row end, beyond the rear wheels, before turning, m. Default 0.15.
+    /// Distance kept between the swept tyre patches and the row end, m: it absorbs the row-end
+    /// estimate's error and the odometry's drift over the few metres driven blind past the end.
+    /// Default 0.15.
     pub clearance_margin_m: f64,
     /// Distance of the wheel contact points ahead of and behind `base_link`, m. Default 0.6095.
     pub wheel_x_m: f64,
     /// Distance of the wheel contact points to the side of `base_link`, m. Default 0.762.
     pub wheel_y_m: f64,
+    /// Width of a tyre's contact patch, m. Default 0.15.
+    pub tire_width_m: f64,
+    /// Length of a tyre's contact patch, m. Default 0.12.
+    pub tire_length_m: f64,
+    /// Heading error at which a pivot is done and the robot drives on, rad. Default 0.05.
+    pub pivot_tolerance_rad: f64,
+    /// Deceleration planned to stop at a pivot or at the end of the mission, m/s². Default 0.25.
+    pub stop_decel_mps2: f64,
+    /// The row end is moved back to the farthest centroid of the lane's rows when that lies at most
+    /// this far before the detector's canopy end, m; 0 keeps the canopy end. Default 0.5: one 0.25 m
+    /// map bin plus the leaves' overhang.
+    pub row_end_window_m: f64,
     /// Largest planned distance of `base_link` past the row end, m. Default 1.5 (Sec. V-C).
     pub max_headland_excursion_m: f64,
     /// Distance driven without any row while following before stopping, m. Default 1.0.
@@ -140,10 +171,15 @@ impl Default for LaneSwitchConfig {
             cruise_speed_mps: 0.5,
             turn_speed_mps: 0.3,
             entry_speed_mps: 0.2,
-            turn_radius_m: 0.6,
+            turn_radius_m: 0.0,
             clearance_margin_m: 0.15,
             wheel_x_m: 0.6095,
             wheel_y_m: 0.762,
+            tire_width_m: 0.15,
+            tire_length_m: 0.12,
+            pivot_tolerance_rad: 0.05,
+            stop_decel_mps2: 0.25,
+            row_end_window_m: 0.5,
             max_headland_excursion_m: 1.5,
             max_blind_distance_m: 1.0,
             end_approach_m: 2.5,
@@ -169,6 +205,11 @@ impl LaneSwitchConfig {
         check_range("lane_switch.entry_speed_mps", self.entry_speed_mps, 0.01, 5.0)?;
         check_range("lane_switch.wheel_x_m", self.wheel_x_m, 0.0, 5.0)?;
         check_range("lane_switch.wheel_y_m", self.wheel_y_m, 0.0, 5.0)?;
+        check_range("lane_switch.tire_width_m", self.tire_width_m, 0.0, 2.0)?;
+        check_range("lane_switch.tire_length_m", self.tire_length_m, 0.0, 2.0)?;
+        check_range("lane_switch.pivot_tolerance_rad", self.pivot_tolerance_rad, 0.001, 0.5)?;
+        check_range("lane_switch.stop_decel_mps2", self.stop_decel_mps2, 0.01, 10.0)?;
+        check_range("lane_switch.row_end_window_m", self.row_end_window_m, 0.0, 5.0)?;
         check_range("lane_switch.clearance_margin_m", self.clearance_margin_m, 0.0, 10.0)?;
         check_range("lane_switch.max_headland_excursion_m", self.max_headland_excursion_m, 0.1, 50.0)?;
         check_range("lane_switch.max_blind_distance_m", self.max_blind_distance_m, 0.0, 100.0)?;
@@ -186,23 +227,16 @@ impl LaneSwitchConfig {
         check_range("lane_switch.default_row_end_ahead_m", self.default_row_end_ahead_m, -10.0, 10.0)?;
         check_range("lane_switch.resume_confirmations", f64::from(self.resume_confirmations), 0.0, 1000.0)?;
         let shift = self.shift_m();
-        check_range("lane_switch.turn_radius_m", self.turn_radius_m, 0.05, 0.5 * shift)?;
-        let start = self.turn_start_m();
-        if start + self.turn_radius_m > self.max_headland_excursion_m {
+        check_range("lane_switch.turn_radius_m", self.turn_radius_m, 0.0, 0.5 * shift)?;
+        let reach = self.turn_excursion_m();
+        if reach > self.max_headland_excursion_m {
             return Err(ConfigError::invalid(
-                "lane_switch.turn_radius_m",
+                "lane_switch.max_headland_excursion_m",
                 format!(
-                    "the turn reaches {:.3} m past the row end (wheel_x_m + clearance_margin_m + turn_radius_m), over max_headland_excursion_m {}",
-                    start + self.turn_radius_m,
+                    "the turn reaches {reach:.3} m past the row end (turn start {:.3} m + turn_radius_m), over {}",
+                    self.turn_start_m(),
                     self.max_headland_excursion_m
                 ),
-            ));
-        }
-        let sweep = self.wheel_x_m.hypot(self.wheel_y_m - self.turn_radius_m);
-        if start < sweep {
-            return Err(ConfigError::invalid(
-                "lane_switch.clearance_margin_m",
-                format!("a wheel would sweep {:.3} m back over the row end during the turn", sweep - start),
             ));
         }
         if self.lanes == 0 && self.field_lanes == 0 {
@@ -235,9 +269,29 @@ impl LaneSwitchConfig {
         2.0 * self.row_spacing_m * f64::from(self.lane_step)
     }
 
-    /// Distance of `base_link` past the row end where the turn starts, m.
+    /// Distance `d₀` of `base_link` past the row end where the turn starts, m: the least that keeps
+    /// every tyre patch off the crop during the turn, plus `clearance_margin_m` (see the module docs).
     pub fn turn_start_m(&self) -> f64 {
-        self.wheel_x_m + self.clearance_margin_m
+        let r = self.turn_radius_m;
+        let (half_l, half_w) = (0.5 * self.tire_length_m, 0.5 * self.tire_width_m);
+        let reach = (self.wheel_x_m + half_l).hypot((self.wheel_y_m - r).abs() + half_w);
+        // Lateral distance from the turning centre to the nearest row line, (k + ½)·spacing.
+        let phase = (r / self.row_spacing_m - 0.5).rem_euclid(1.0);
+        let nearest = phase.min(1.0 - phase) * self.row_spacing_m;
+        let swing = (reach * reach - nearest * nearest).max(0.0).sqrt();
+        let sideways = self.wheel_y_m + half_w - r;
+        let outer_rear = if r > 0.0 { self.wheel_x_m + half_l } else { 0.0 };
+        swing.max(sideways).max(outer_rear) + self.clearance_margin_m
+    }
+
+    /// Planned largest distance of `base_link` past the row end, m: `turn_start_m + turn_radius_m`.
+    pub fn turn_excursion_m(&self) -> f64 {
+        self.turn_start_m() + self.turn_radius_m
+    }
+
+    /// True when the turn pivots in place (`turn_radius_m` = 0).
+    pub fn pivots(&self) -> bool {
+        self.turn_radius_m <= 0.0
     }
 
     /// Number of lanes this mission drives.
@@ -339,7 +393,8 @@ impl Mode {
 pub struct Guidance {
     /// Current mode.
     pub mode: Mode,
-    /// Cruise speed for the MPC along [`LaneSwitcher::path`], m/s; 0 when stopped.
+    /// Cruise speed for the MPC along [`LaneSwitcher::path`], m/s; 0 when stopped or pivoting, and
+    /// braking (at `stop_decel_mps2`) towards a pivot or the end of the mission.
     pub speed_mps: f64,
     /// True on the step the caller must reset the detector (its row memory belongs to the old lane).
     pub reset_detector: bool,
@@ -371,6 +426,10 @@ pub struct LaneSwitcher {
     /// Consecutive detections of the stopped-at lane, towards an automatic resume.
     resume_agree: u32,
     max_excursion_m: f64,
+    /// Turning on the spot at the start of the turn path's first leg.
+    pivoting: bool,
+    /// How far the row end lies before the detector's canopy end (see `row_end_window_m`), m.
+    end_trim_m: f64,
 }
 
 impl LaneSwitcher {
@@ -393,6 +452,8 @@ impl LaneSwitcher {
             disagree: 0,
             resume_agree: 0,
             max_excursion_m: 0.0,
+            pivoting: false,
+            end_trim_m: 0.0,
             cfg,
         })
     }
@@ -464,7 +525,7 @@ impl LaneSwitcher {
         let mut reset_detector = false;
         if !odom.is_finite() {
             self.mode = Mode::Stopped { reason: StopReason::InvalidOdometry };
-            return self.guidance(false);
+            return self.guidance(false, odom);
         }
         let travelled = self.last_pose.map_or(0.0, |p| (odom.x - p.x).hypot(odom.y - p.y));
         self.last_pose = Some(*odom);
@@ -489,7 +550,7 @@ impl LaneSwitcher {
             Mode::Following => self.follow(odom, detection, travelled),
             Mode::ClearingRowEnd => {
                 if let (Some(d), Some(end)) = (detection, self.row_end)
-                    && let Some(ahead) = d.row_end_ahead_m.filter(|a| a.is_finite())
+                    && let Some(ahead) = self.end_ahead(d)
                 {
                     // A closer look refines the row end; only small corrections are believed.
                     let refined = self.end_from(odom, ahead);
@@ -497,8 +558,9 @@ impl LaneSwitcher {
                         self.row_end = Some(refined);
                     }
                 }
+                let tolerance = if self.stops_at_turn_start() { STOP_TOLERANCE_M } else { 0.0 };
                 if let Some(end) = self.row_end
-                    && along(&end, odom) >= self.cfg.turn_start_m()
+                    && along(&end, odom) >= self.cfg.turn_start_m() - tolerance
                 {
                     self.lanes_completed = self.lanes_completed.saturating_add(1);
                     if self.lanes_completed >= self.cfg.lane_count() {
@@ -511,9 +573,7 @@ impl LaneSwitcher {
                 }
             }
             Mode::Turning => {
-                let arcs_end = self.turn.segments().iter().take(3).map(|s| s.length_m).sum::<f64>();
-                self.s_hint_m = self.turn.project(odom, self.s_hint_m).s_m;
-                if self.s_hint_m >= arcs_end {
+                if self.advance_turn(odom) {
                     self.mode = Mode::Entering;
                     self.agree = 0;
                     self.disagree = 0;
@@ -526,16 +586,69 @@ impl LaneSwitcher {
             }
             Mode::Done | Mode::Stopped { .. } => {}
         }
-        self.guidance(reset_detector)
+        self.guidance(reset_detector, odom)
     }
 
-    fn guidance(&self, reset_detector: bool) -> Guidance {
-        let speed_mps = match self.mode {
+    /// True when the robot must stand still where the turn starts: it pivots there, or the mission
+    /// ends there.
+    fn stops_at_turn_start(&self) -> bool {
+        self.cfg.pivots() || self.lanes_completed.saturating_add(1) >= self.cfg.lane_count()
+    }
+
+    /// The highest speed from which the robot stops within `remaining_m` at `stop_decel_mps2`, m/s.
+    fn braking_speed(&self, remaining_m: f64) -> f64 {
+        (2.0 * self.cfg.stop_decel_mps2 * remaining_m.max(0.0)).sqrt()
+    }
+
+    /// Follows the turn path leg by leg: drops the legs that are done and, at a corner, pivots until
+    /// the robot heads along the next leg. True once only the entry straight is left.
+    fn advance_turn(&mut self, odom: &Pose2) -> bool {
+        let mut f = self.turn.project(odom, self.s_hint_m);
+        if self.pivoting && f.heading_rad.abs() <= self.cfg.pivot_tolerance_rad {
+            self.pivoting = false;
+        }
+        while !self.pivoting {
+            let (Some(leg), Some(next)) = (self.turn.segments().first(), self.turn.segments().get(1)) else {
+                break;
+            };
+            let corner = is_corner(leg, next);
+            let tolerance = if corner { STOP_TOLERANCE_M } else { 0.0 };
+            if f.s_m < leg.length_m - tolerance {
+                break;
+            }
+            self.turn.pop_front();
+            self.pivoting = corner;
+            f = self.turn.project(odom, 0.0);
+        }
+        self.s_hint_m = f.s_m;
+        !self.pivoting && self.turn.segments().len() <= 1
+    }
+
+    /// The cruise speed for the MPC in the current mode, braking to a stop where the robot must stand.
+    fn speed_mps(&self, odom: &Pose2) -> f64 {
+        match self.mode {
             Mode::Following => self.cfg.cruise_speed_mps,
-            Mode::ClearingRowEnd | Mode::Turning => self.cfg.turn_speed_mps,
+            Mode::ClearingRowEnd => match self.row_end {
+                Some(end) if self.stops_at_turn_start() => self
+                    .cfg
+                    .turn_speed_mps
+                    .min(self.braking_speed(self.cfg.turn_start_m() - along(&end, odom))),
+                _ => self.cfg.turn_speed_mps,
+            },
+            Mode::Turning if self.pivoting => 0.0,
+            Mode::Turning => match self.turn.segments() {
+                [leg, next, ..] if is_corner(leg, next) => {
+                    self.cfg.turn_speed_mps.min(self.braking_speed(leg.length_m - self.s_hint_m))
+                }
+                _ => self.cfg.turn_speed_mps,
+            },
             Mode::Entering => self.cfg.entry_speed_mps,
             Mode::Acquiring | Mode::Done | Mode::Stopped { .. } => 0.0,
-        };
+        }
+    }
+
+    fn guidance(&self, reset_detector: bool, odom: &Pose2) -> Guidance {
+        let speed_mps = if odom.is_finite() { self.speed_mps(odom) } else { 0.0 };
         Guidance {
             mode: self.mode,
             speed_mps,
@@ -551,6 +664,8 @@ impl LaneSwitcher {
         self.resume_agree = 0;
         self.row_end = None;
         self.exit_line = None;
+        self.end_trim_m = 0.0;
+        self.pivoting = false;
         self.s_hint_m = self.reference.path().map_or(0.0, |p| p.project(odom, 0.0).s_m);
     }
 
@@ -560,7 +675,7 @@ impl LaneSwitcher {
             if d.status != RowStatus::Lost {
                 saw_rows = self.reference.update(d, odom);
             }
-            if let Some(ahead) = d.row_end_ahead_m.filter(|a| a.is_finite()) {
+            if let Some(ahead) = self.end_ahead(d) {
                 self.row_end = Some(self.end_from(odom, ahead));
             } else if d.status == RowStatus::EndOfRow && self.row_end.is_none() {
                 self.row_end = Some(self.end_from(odom, self.cfg.default_row_end_ahead_m));
@@ -612,6 +727,29 @@ impl LaneSwitcher {
         }
     }
 
+    /// The distance along the rows from `base_link` to the row end that a detection implies, m: the
+    /// detector's canopy end, moved back to the farthest centroid of the lane's rows when that lies
+    /// within `row_end_window_m` before it (see the module docs). The offset is kept for the scans
+    /// that report the end without rows (the last plants out of view).
+    fn end_ahead(&mut self, d: &Detection) -> Option<f64> {
+        let ahead = d.row_end_ahead_m.filter(|a| a.is_finite())?;
+        let far = [d.left, d.right]
+            .iter()
+            .flatten()
+            .filter(|r| r.heading_rad.is_finite() && r.line.iter().all(|v| v.is_finite()))
+            .map(|r| {
+                let [_, _, x2, y2] = r.line;
+                let (sin, cos) = r.heading_rad.sin_cos();
+                x2 * cos + y2 * sin
+            })
+            .fold(f64::NEG_INFINITY, f64::max);
+        if far.is_finite() {
+            let trim = ahead - far;
+            self.end_trim_m = if (0.0..=self.cfg.row_end_window_m).contains(&trim) { trim } else { 0.0 };
+        }
+        Some(ahead - self.end_trim_m)
+    }
+
     /// The row end `ahead` metres along the current centre line from the robot.
     fn end_from(&self, odom: &Pose2, ahead: f64) -> Pose2 {
         match self.reference.path() {
@@ -630,17 +768,28 @@ impl LaneSwitcher {
             -self.cfg.first_turn.sign()
         };
         let r = self.cfg.turn_radius_m;
-        let k = side / r;
         let shift = self.cfg.shift_m();
-        // Start on the old centre line abreast of the robot, heading along the row.
         let d = along(end, odom);
-        let start = end.compose(&Pose2::new(d, 0.0, 0.0));
-        let arc = FRAC_PI_2 * r;
+        let entry_m = d + self.cfg.max_unconfirmed_entry_m + 10.0;
         self.turn.clear();
-        self.turn.extend(start, arc, k);
-        self.turn.extend(start, (shift - 2.0 * r).max(0.0), 0.0);
-        self.turn.extend(start, arc, k);
-        self.turn.extend(start, d + self.cfg.max_unconfirmed_entry_m + 10.0, 0.0);
+        if self.cfg.pivots() {
+            // Corners at the planned start and one shift over: the robot stopped within a few
+            // centimetres of the start, and the straight's lateral error takes that up.
+            let start = end.compose(&Pose2::new(self.cfg.turn_start_m(), 0.0, side * FRAC_PI_2));
+            self.turn.push(start, shift, 0.0);
+            let corner = self.turn.pose_at(shift);
+            self.turn.push(corner.compose(&Pose2::new(0.0, 0.0, side * FRAC_PI_2)), entry_m, 0.0);
+            self.pivoting = true;
+        } else {
+            // Start on the old centre line abreast of the robot, heading along the row.
+            let start = end.compose(&Pose2::new(d, 0.0, 0.0));
+            let (arc, k) = (FRAC_PI_2 * r, side / r);
+            self.turn.extend(start, arc, k);
+            self.turn.extend(start, (shift - 2.0 * r).max(0.0), 0.0);
+            self.turn.extend(start, arc, k);
+            self.turn.extend(start, entry_m, 0.0);
+            self.pivoting = false;
+        }
         self.s_hint_m = 0.0;
         self.turn_index = self.turn_index.wrapping_add(1);
         self.exit_line = Some(*end);
@@ -655,17 +804,11 @@ impl LaneSwitcher {
         let rel = c.relative(&entry.start);
         // entry.start expressed on the detected line: its foot point, with the line's heading.
         let foot = c.compose(&Pose2::new(rel.x, 0.0, 0.0));
-        let mut segments = [*entry; 3];
-        let n = self.turn.segments().len();
-        if n != 4 {
-            return;
-        }
-        segments.copy_from_slice(&self.turn.segments()[..3]);
+        // While entering, the entry straight is all that is left of the turn: the centre line of the
+        // lane the detector sees.
         self.turn.clear();
-        for seg in segments {
-            self.turn.push(seg.start, seg.length_m, seg.curvature_per_m);
-        }
         self.turn.push(foot, entry.length_m, 0.0);
+        self.turn.set_row_spacing(Some(self.cfg.row_spacing_m));
     }
 
     fn enter(&mut self, odom: &Pose2, detection: Option<&Detection>) {
@@ -710,6 +853,15 @@ impl LaneSwitcher {
             self.mode = Mode::Stopped { reason: StopReason::ReentryNotConfirmed };
         }
     }
+}
+
+/// Distance from a pivot or mission end within which the robot counts as there, m: the braking
+/// profile reaches zero speed only at the point itself.
+const STOP_TOLERANCE_M: f64 = 0.02;
+
+/// True when `next` does not continue `leg`'s heading: the robot must pivot there.
+fn is_corner(leg: &Segment, next: &Segment) -> bool {
+    wrap_angle(next.start.yaw - leg.end().yaw).abs() > 1e-6
 }
 
 /// Signed distance of `pose` past the row-end line `end` along the row direction, m.
@@ -807,24 +959,43 @@ mod tests {
     }
 
     #[test]
-    fn default_turn_fits_the_headland() {
+    fn default_turn_pivots_inside_the_headland() {
         let cfg = LaneSwitchConfig::default();
         cfg.validate().unwrap();
-        // 0.6095 + 0.15 + 0.6 = 1.3595 m past the row end.
-        assert!((cfg.turn_start_m() + cfg.turn_radius_m - 1.3595).abs() < 1e-12);
+        assert!(cfg.pivots());
+        // √((0.6095 + 0.06)² + (0.762 + 0.075)² − 0.375²) + 0.15 = 1.1541 m past the row end.
+        assert!((cfg.turn_excursion_m() - 1.15412).abs() < 1e-4, "{}", cfg.turn_excursion_m());
+    }
+
+    #[test]
+    fn a_pivot_starts_where_the_swept_tyres_just_miss_the_nearest_plants() {
+        let cfg = LaneSwitchConfig { clearance_margin_m: 0.0, ..LaneSwitchConfig::default() };
+        // The farthest tyre-patch corner from base_link sweeps a circle; the nearest plants stand at
+        // the row end on the lane's rows, half a row spacing to the side (arithmetic: 1e-12).
+        let reach = (0.6095f64 + 0.06).hypot(0.762 + 0.075);
+        assert!((cfg.turn_start_m().hypot(0.375) - reach).abs() < 1e-12);
+    }
+
+    #[test]
+    fn arcs_reach_farther_into_the_headland_than_a_pivot() {
+        let pivot = LaneSwitchConfig::default().turn_excursion_m();
+        for r in [0.1, 0.3, 0.6, 0.75] {
+            let arcs = LaneSwitchConfig { turn_radius_m: r, ..LaneSwitchConfig::default() };
+            assert!(arcs.turn_excursion_m() > pivot + 0.05, "r {r}: {}", arcs.turn_excursion_m());
+        }
+        // r = 0.6: the inner tyre corner is √(0.6695² + 0.237²) = 0.7102 m from the turning centre,
+        // whose nearest row is 0.225 m to its side; the outer rear tyre starts 0.6695 m back.
+        let r06 = LaneSwitchConfig { turn_radius_m: 0.6, ..LaneSwitchConfig::default() };
+        let swing = (0.6695f64.hypot(0.237).powi(2) - 0.225f64.powi(2)).sqrt();
+        assert!((r06.turn_start_m() - (swing + 0.15)).abs() < 1e-9, "{}", r06.turn_start_m());
     }
 
     #[test]
     fn a_turn_past_the_headland_is_refused() {
         let cfg = LaneSwitchConfig { clearance_margin_m: 0.5, ..LaneSwitchConfig::default() };
+        assert!(cfg.validate().unwrap_err().to_string().contains("lane_switch.max_headland_excursion_m"));
+        let cfg = LaneSwitchConfig { turn_radius_m: -0.1, ..LaneSwitchConfig::default() };
         assert!(cfg.validate().unwrap_err().to_string().contains("lane_switch.turn_radius_m"));
-    }
-
-    #[test]
-    fn a_turn_sweeping_a_wheel_over_the_crop_is_refused() {
-        let cfg =
-            LaneSwitchConfig { clearance_margin_m: 0.0, turn_radius_m: 0.2, ..LaneSwitchConfig::default() };
-        assert!(cfg.validate().unwrap_err().to_string().contains("lane_switch.clearance_margin_m"));
     }
 
     #[test]

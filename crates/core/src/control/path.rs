@@ -87,23 +87,39 @@ pub struct Frenet {
 
 /// A chain of segments in `odom`. Capacity is reserved once; [`Path::clear`] and [`Path::push`]
 /// then reuse it, so rebuilding a path every scan allocates nothing.
+///
+/// A path along a lane's centre line may say so ([`Path::set_row_spacing`]): crop rows then run
+/// parallel to it, `(k + ½)·spacing` to either side, and the MPC keeps the tyres between them.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Path {
     segments: Vec<Segment>,
     /// Arc length at the start of each segment, m.
     starts_m: Vec<f64>,
+    row_spacing_m: Option<f64>,
 }
 
 impl Path {
     /// An empty path with room for `n` segments.
     pub fn with_capacity(n: usize) -> Self {
-        Self { segments: Vec::with_capacity(n), starts_m: Vec::with_capacity(n) }
+        Self { segments: Vec::with_capacity(n), starts_m: Vec::with_capacity(n), row_spacing_m: None }
     }
 
-    /// Removes all segments, keeping the capacity.
+    /// Removes all segments and the row spacing, keeping the capacity.
     pub fn clear(&mut self) {
         self.segments.clear();
         self.starts_m.clear();
+        self.row_spacing_m = None;
+    }
+
+    /// Declares the path a lane centre line between crop rows `spacing_m` apart (`None`: no rows
+    /// along it, e.g. a headland turn). A spacing that is not finite and positive counts as `None`.
+    pub fn set_row_spacing(&mut self, spacing_m: Option<f64>) {
+        self.row_spacing_m = spacing_m.filter(|s| s.is_finite() && *s > 0.0);
+    }
+
+    /// Spacing of the crop rows the path runs between, m, when it is a lane centre line.
+    pub fn row_spacing_m(&self) -> Option<f64> {
+        self.row_spacing_m
     }
 
     /// Appends a segment starting at `start`.
@@ -117,6 +133,18 @@ impl Path {
     pub fn extend(&mut self, origin: Pose2, length_m: f64, curvature_per_m: f64) {
         let start = self.segments.last().map_or(origin, Segment::end);
         self.push(start, length_m, curvature_per_m);
+    }
+
+    /// Removes the first segment (a leg that is done) and returns its length, m; arc lengths then
+    /// count from the new first segment. In place: nothing is allocated.
+    pub fn pop_front(&mut self) -> Option<f64> {
+        if self.segments.is_empty() {
+            return None;
+        }
+        let done = self.segments.remove(0).length_m;
+        self.starts_m.remove(0);
+        self.starts_m.iter_mut().for_each(|s0| *s0 -= done);
+        Some(done)
     }
 
     /// The segments, in order.
@@ -236,5 +264,22 @@ mod tests {
         let end = p.pose_at(total);
         assert!((end.yaw.abs() - std::f64::consts::PI).abs() < 1e-9);
         assert!((end.y - (2.0 * r + 0.3)).abs() < 1e-9 && (end.x - (-3.0)).abs() < 1e-9);
+    }
+
+    #[test]
+    fn popping_a_done_leg_rebases_the_arc_length() {
+        let mut p = Path::with_capacity(3);
+        p.push(Pose2::new(0.0, 0.0, 0.0), 2.0, 0.0);
+        p.push(Pose2::new(2.0, 0.0, FRAC_PI_2), 1.5, 0.0);
+        let corner_to_end = p.pose_at(3.5);
+        assert_eq!(p.pop_front(), Some(2.0));
+        assert_eq!(p.segments().len(), 1);
+        assert!((p.length_m() - 1.5).abs() < 1e-12);
+        // The same place on the path, now 1.5 m from its start (arithmetic: 1e-12).
+        let e = p.pose_at(1.5);
+        assert!((e.x - corner_to_end.x).abs() < 1e-12 && (e.y - corner_to_end.y).abs() < 1e-12);
+        assert_eq!(p.pop_front(), Some(1.5));
+        assert_eq!(p.pop_front(), None);
+        assert!(p.is_empty());
     }
 }

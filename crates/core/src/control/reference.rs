@@ -96,10 +96,7 @@ impl Reference {
 
     /// The centre line a detection implies, in `base_link`, or `None` without a usable row.
     pub fn centre_line(&self, detection: &Detection) -> Option<CentreLine> {
-        let spacing = detection
-            .row_spacing_m
-            .filter(|s| s.is_finite() && *s > 0.0)
-            .unwrap_or(self.cfg.fallback_row_spacing_m);
+        let spacing = self.spacing_m(detection);
         let usable = |r: &Option<RowEstimate>| {
             r.filter(|r| {
                 r.offset_m.is_finite()
@@ -134,6 +131,14 @@ impl Reference {
         Some(CentreLine { curvature_per_m: k, ..line })
     }
 
+    /// The row spacing of a detection, or the fallback, m.
+    fn spacing_m(&self, detection: &Detection) -> f64 {
+        detection
+            .row_spacing_m
+            .filter(|s| s.is_finite() && *s > 0.0)
+            .unwrap_or(self.cfg.fallback_row_spacing_m)
+    }
+
     /// Updates the path from a detection and the `odom` pose at its scan stamp. Returns false (and
     /// keeps the previous path) when the detection has no usable row or the pose is not finite.
     pub fn update(&mut self, detection: &Detection, odom_at_scan: &Pose2) -> bool {
@@ -142,18 +147,22 @@ impl Reference {
         }
         let Some(line) = self.centre_line(detection) else { return false };
         self.set_line(odom_at_scan.compose(&line.pose()), line.curvature_per_m);
+        self.path.set_row_spacing(Some(self.spacing_m(detection)));
         self.stamp_s = Some(detection.stamp_s);
         true
     }
 
     /// Sets the path to the line through `pose_odom` (a point of the line and its direction, in
     /// `odom`) with curvature `curvature_per_m`, from `behind_m` behind to `ahead_m` ahead.
+    /// The row spacing the path carries is kept.
     pub fn set_line(&mut self, pose_odom: Pose2, curvature_per_m: f64) {
+        let spacing = self.path.row_spacing_m();
         self.path.clear();
         self.path.push(pose_odom, 1.0, curvature_per_m);
         let start = self.path.pose_at(-self.cfg.behind_m);
         self.path.clear();
         self.path.push(start, self.cfg.behind_m + self.cfg.ahead_m, curvature_per_m);
+        self.path.set_row_spacing(spacing);
     }
 
     /// Makes the current line straight from its point closest to `pose` on: past the row end the
