@@ -77,11 +77,12 @@ fn recovers_from_a_start_0_3_m_and_8_degrees_off_within_3_m() {
     //   which swings the rear-left tyre onto the row: some row length is always run over. A search
     //   over pivot-drive-pivot-drive manoeuvres of a forward-only unicycle finds at least 1.33 m of
     //   row line under the tyres, 7.8 plants on average.
-    // Measured with the MPC's wheel corridor: 10 (row line run over 1.68 m; 13 without the corridor),
-    // all in the first metre, then none.
+    // Measured with the MPC's wheel corridor: 12, all in the first metre, then none (10 while the MPC
+    // could speed up past the cruise speed to escape sooner, which it may no longer; 13 without the
+    // corridor).
     let after_first_metre = run.samples.iter().find(|s| s.distance_m >= 1.0).map(|s| s.crop_contacts);
     assert_eq!(after_first_metre, Some(m.crop_contacts), "{m:?}");
-    assert!(m.crop_contacts <= 10, "{m:?}");
+    assert!(m.crop_contacts <= 12, "{m:?}");
 }
 
 #[test]

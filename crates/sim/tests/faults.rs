@@ -254,8 +254,9 @@ fn a_lidar_rolled_three_degrees_off_its_nominal_mount_keeps_tracking() {
     s.faults.mount_error.pitch_deg = 0.0;
     s.faults.mount_error.roll_deg = 3.0;
     // Roll shifts the canopy sideways by 1.5 m · sin 3° at the ground, less at the canopy: measured
-    // 1.5 cm mean, 5.9 cm max.
-    assert_tracked(&drive(&s), 3.0, 8.0);
+    // 1.6 cm mean; the maximum, 9.8 cm, is in the last metre of the lane, where the rows end in view
+    // and the biased fit bends (5.9 cm before the MPC's speed became a limit and turns pivoted).
+    assert_tracked(&drive(&s), 3.0, 11.0);
 }
 
 #[test]
