@@ -175,3 +175,22 @@ proptest::proptest! {
         proptest::prop_assert!(sol.cmd.omega.abs() <= cfg.yaw_rate_max_radps);
     }
 }
+
+#[test]
+fn the_mpc_never_plans_faster_than_the_cruise_speed_even_to_pull_a_tyre_back_between_the_rows() {
+    // Regression: with the wheel corridor active, a robot far off its lane centre line sped up to
+    // 0.94 m/s (cruise 0.5) to leave the rows sooner, and ran over plants at a row end.
+    let mut path = Path::with_capacity(1);
+    path.push(Pose2::new(-1.0, 0.0, 0.0), 40.0, 0.0);
+    path.set_row_spacing(Some(0.75));
+    for (dy, dyaw) in [(0.3, 8f64), (-0.3, -8.0), (0.2, -15.0)] {
+        let mut mpc = Mpc::new(MpcConfig::default()).unwrap();
+        let trace = closed_loop(&path, Pose2::new(0.0, dy, dyaw.to_radians()), 0.5, 100, &mut mpc);
+        let fastest = trace.iter().map(|t| t.2.v).fold(0.0, f64::max);
+        assert!(fastest <= 0.5 + 1e-9, "start ({dy} m, {dyaw}°): {fastest} m/s");
+    }
+    // A zero speed (a pivot) keeps the robot on the spot.
+    let mut mpc = Mpc::new(MpcConfig::default()).unwrap();
+    let trace = closed_loop(&path, Pose2::new(0.0, 0.0, 1.2), 0.0, 30, &mut mpc);
+    assert!(trace.iter().all(|t| t.2.v == 0.0));
+}
