@@ -171,7 +171,8 @@ fn rows_lost_status_stops_immediately() {
     assert_eq!(g.mode, Mode::Stopped { reason: StopReason::RowsLost });
     assert_eq!(g.speed_mps, 0.0);
     assert!(sw.path().is_none());
-    // Latched: rows coming back do not restart the robot by themselves.
+    // One detection of the rows coming back is not enough to move again: the automatic resume needs
+    // `resume_confirmations` (5) consistent ones.
     let g = sw.update(&lane_start(0), Some(&field().detect(0.2, &lane_start(0))));
     assert_eq!(g.mode, Mode::Stopped { reason: StopReason::RowsLost });
     sw.resume();
