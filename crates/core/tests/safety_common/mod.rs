@@ -76,8 +76,7 @@ pub fn honest_corruption() -> impl Strategy<Value = Corruption> {
     prop_oneof![
         12 => Just(Corruption::None),
         2 => Just(Corruption::Drop),
-        2 => prop_oneof![Just(RowStatus::Searching), Just(RowStatus::Lost), Just(RowStatus::InvalidInput)]
-            .prop_map(Corruption::Empty),
+        2 => prop_oneof![Just(RowStatus::Searching), Just(RowStatus::InvalidInput)].prop_map(Corruption::Empty),
         3 => (-0.03..0.03, -0.02..0.02, -0.1..0.1)
             .prop_map(|(offset_m, heading_rad, end_m)| Corruption::Noise { offset_m, heading_rad, end_m }),
     ]
