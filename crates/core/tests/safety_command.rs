@@ -83,7 +83,7 @@ fn check(
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(48))]
+    #![proptest_config(safety_common::config(48))]
 
     #[test]
     fn command_is_finite_and_within_limits_under_any_detections_and_stamps(

@@ -4,6 +4,7 @@
 //! status, `Lost` with rows, rows with non-finite numbers or facing across the field.
 
 mod control_field;
+mod safety_common;
 
 use control_field::{Field, PERIOD_S, drive, lane_start};
 use croprow_core::control::lane_switch::{LaneSwitchConfig, Mode, StopReason};
@@ -54,7 +55,7 @@ fn apply(d: Detection, k: NoRow) -> Option<Detection> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(64))]
+    #![proptest_config(safety_common::config(64))]
 
     #[test]
     fn rows_lost_beyond_the_blind_distance_stop_the_robot(

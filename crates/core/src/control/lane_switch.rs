@@ -14,6 +14,8 @@
 //!                                                      Done
 //! Following: rows Lost, or no row for `max_blind_distance_m`, farther than `end_approach_m`
 //!            from a row end the detector has seen ─► Stopped { RowsLost | NoRows }
+//! Always:    rows at a spacing over `spacing_tolerance` off `row_spacing_m` are not believed (no row)
+//! Following: a centre line over `max_line_jump_m` from the one followed is not believed (no row)
 //! Entering:  rows disagree with the planned lane ─► Stopped { WrongLane };
 //!            too deep into the field unconfirmed ─► Stopped { ReentryNotConfirmed }
 //! ```
@@ -119,6 +121,16 @@ pub struct LaneSwitchConfig {
     /// beam of the paper's mount (1.5 m high, 30° down, 0.6 m ahead of `base_link`) meets a 0.5 m
     /// canopy, the nearest canopy a scan shows. The default pipeline reports the distance itself.
     pub default_row_end_ahead_m: f64,
+    /// Largest relative difference between the row spacing a detection reports and `row_spacing_m`
+    /// for its rows to be believed. Default 0.25: a detector locked on half or twice the row period
+    /// (the two crests of a closed canopy) is 50 % off or more, while its online estimate stays within
+    /// 10 % on the simulated fields (soak, issue 6). Rows not believed count as no row: the robot does
+    /// not start, stops after `max_blind_distance_m`, or does not confirm a new lane.
+    pub spacing_tolerance: f64,
+    /// Largest lateral jump, at the robot, of the detected centre line from the one being followed,
+    /// m. A larger one (the rows of a neighbouring lane, seen for a scan) is not believed and counts
+    /// as no row. Default 0.25 (a third of a row spacing; scan-to-scan changes are centimetres).
+    pub max_line_jump_m: f64,
 }
 
 impl Default for LaneSwitchConfig {
@@ -146,6 +158,8 @@ impl Default for LaneSwitchConfig {
             entry_confirmations: 3,
             max_unconfirmed_entry_m: 1.0,
             default_row_end_ahead_m: 1.6,
+            spacing_tolerance: 0.25,
+            max_line_jump_m: 0.25,
         }
     }
 }
@@ -176,6 +190,8 @@ impl LaneSwitchConfig {
         check_range("lane_switch.entry_confirmations", self.entry_confirmations as f64, 1.0, 1000.0)?;
         check_range("lane_switch.max_unconfirmed_entry_m", self.max_unconfirmed_entry_m, 0.0, 100.0)?;
         check_range("lane_switch.default_row_end_ahead_m", self.default_row_end_ahead_m, -10.0, 10.0)?;
+        check_range("lane_switch.spacing_tolerance", self.spacing_tolerance, 0.01, 10.0)?;
+        check_range("lane_switch.max_line_jump_m", self.max_line_jump_m, 0.01, 10.0)?;
         let shift = self.shift_m();
         check_range("lane_switch.turn_radius_m", self.turn_radius_m, 0.05, 0.5 * shift)?;
         let start = self.turn_start_m();
@@ -456,6 +472,10 @@ impl LaneSwitcher {
         }
         // InvalidInput detections carry nothing; they count as no detection.
         let detection = detection.filter(|d| d.status != RowStatus::InvalidInput);
+        // Rows at a spacing this field does not have belong to no lane of it: not believed.
+        let believed = detection
+            .map(|d| if self.spacing_agrees(d) { *d } else { Detection { left: None, right: None, ..*d } });
+        let detection = believed.as_ref();
         match self.mode {
             Mode::Acquiring => {
                 if let Some(d) = detection
@@ -505,6 +525,13 @@ impl LaneSwitcher {
         self.guidance(reset_detector)
     }
 
+    /// True unless the detection reports a row spacing too far from `row_spacing_m`.
+    fn spacing_agrees(&self, d: &Detection) -> bool {
+        d.row_spacing_m.is_none_or(|s| {
+            (s - self.cfg.row_spacing_m).abs() <= self.cfg.spacing_tolerance * self.cfg.row_spacing_m
+        })
+    }
+
     fn guidance(&self, reset_detector: bool) -> Guidance {
         let speed_mps = match self.mode {
             Mode::Following => self.cfg.cruise_speed_mps,
@@ -532,7 +559,7 @@ impl LaneSwitcher {
     fn follow(&mut self, odom: &Pose2, detection: Option<&Detection>, travelled: f64) {
         let mut saw_rows = false;
         if let Some(d) = detection {
-            if d.status != RowStatus::Lost {
+            if d.status != RowStatus::Lost && self.continues_line(d, odom) {
                 saw_rows = self.reference.update(d, odom);
             }
             if let Some(ahead) = d.row_end_ahead_m.filter(|a| a.is_finite()) {
@@ -564,6 +591,17 @@ impl LaneSwitcher {
         if self.blind_m > self.cfg.max_blind_distance_m {
             self.mode = Mode::Stopped { reason: StopReason::NoRows };
         }
+    }
+
+    /// True when the centre line `d` implies passes within `max_line_jump_m` of the path being
+    /// followed at the robot (or there is nothing to compare). Believing a one-scan jump to a
+    /// neighbouring lane would carry the rest of the mission, row end and turn included, one lane over.
+    fn continues_line(&self, d: &Detection, odom: &Pose2) -> bool {
+        let (Some(path), Some(line)) = (self.reference.path(), self.reference.centre_line(d)) else {
+            return true;
+        };
+        let on_line = odom.compose(&line.pose());
+        path.project(&on_line, self.s_hint_m).lateral_m.abs() <= self.cfg.max_line_jump_m
     }
 
     /// The row end `ahead` metres along the current centre line from the robot.

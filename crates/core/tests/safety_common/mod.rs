@@ -6,6 +6,11 @@
 use croprow_core::{Detection, Pose2, RowEstimate, RowStatus};
 use proptest::prelude::*;
 
+/// Bounds of the small errors of [`Corruption::Noise`]: row offset (m), heading (rad), row end (m).
+pub const NOISE_OFFSET_M: f64 = 0.03;
+pub const NOISE_HEADING_RAD: f64 = 0.02;
+pub const NOISE_END_M: f64 = 0.1;
+
 /// A value that may be absurd: mostly plausible, sometimes NaN, ±inf or huge.
 pub fn wild_f64(plausible: std::ops::Range<f64>) -> impl Strategy<Value = f64> {
     prop_oneof![
@@ -63,7 +68,7 @@ pub fn corruption() -> impl Strategy<Value = Corruption> {
             }
         ),
         1 => prop_oneof![Just(-1.5), Just(1.5)].prop_map(Corruption::LaneShift),
-        3 => (-0.03..0.03, -0.02..0.02, -0.1..0.1)
+        3 => (-NOISE_OFFSET_M..NOISE_OFFSET_M, -NOISE_HEADING_RAD..NOISE_HEADING_RAD, -NOISE_END_M..NOISE_END_M)
             .prop_map(|(offset_m, heading_rad, end_m)| Corruption::Noise { offset_m, heading_rad, end_m }),
         1 => wild_f64(-5.0..8.0).prop_map(Corruption::RowEnd),
         1 => status().prop_map(Corruption::Status),
@@ -77,7 +82,7 @@ pub fn honest_corruption() -> impl Strategy<Value = Corruption> {
         12 => Just(Corruption::None),
         2 => Just(Corruption::Drop),
         2 => prop_oneof![Just(RowStatus::Searching), Just(RowStatus::InvalidInput)].prop_map(Corruption::Empty),
-        3 => (-0.03..0.03, -0.02..0.02, -0.1..0.1)
+        3 => (-NOISE_OFFSET_M..NOISE_OFFSET_M, -NOISE_HEADING_RAD..NOISE_HEADING_RAD, -NOISE_END_M..NOISE_END_M)
             .prop_map(|(offset_m, heading_rad, end_m)| Corruption::Noise { offset_m, heading_rad, end_m }),
     ]
 }
@@ -153,4 +158,15 @@ pub fn glitch() -> impl Strategy<Value = InputGlitch> {
         1 => Just(InputGlitch::BadTwist),
         1 => (-3.0..3.0, -3.0..3.0).prop_map(|(x, y)| InputGlitch::Teleport(x, y)),
     ]
+}
+
+/// The proptest settings of the safety tests: `cases` cases from a fixed seed (deterministic runs;
+/// `PROPTEST_RNG_SEED=n` explores others), no failure files (a failure found is kept as a named test).
+pub fn config(cases: u32) -> ProptestConfig {
+    let default = ProptestConfig::default();
+    let rng_seed = match default.rng_seed {
+        proptest::test_runner::RngSeed::Random => proptest::test_runner::RngSeed::Fixed(0x5AFE_C0DE),
+        fixed => fixed,
+    };
+    ProptestConfig { cases, rng_seed, failure_persistence: None, ..default }
 }

@@ -24,7 +24,8 @@
 //!   - while entering a lane deeper than `lane_switch.max_unconfirmed_entry_m` (+ [`END_SLACK_M`])
 //!     into the crop without the detector having confirmed it.
 //!
-//! Safe stops (rows lost, a lane not confirmed, a time-out at rest) are outcomes, not failures.
+//! Safe stops (rows lost, a lane not confirmed, a time-out at rest, rows never acquired within
+//! [`ACQUIRE_TIMEOUT_S`]) are outcomes, not failures.
 //!
 //! ```no_run
 //! use croprow_sim::experiment::soak::{run_case, soak_case};
@@ -55,6 +56,9 @@ pub const BLIND_SLACK_M: f64 = 0.15;
 pub const END_SLACK_M: f64 = 0.5;
 /// Events kept per run (the counts go on).
 const MAX_EVENTS: usize = 8;
+/// A run whose navigator is still acquiring this long after the standstill ends there, s: a robot
+/// that never starts is safe, and waiting out the time limit would only slow the soak down.
+pub const ACQUIRE_TIMEOUT_S: f64 = 20.0;
 /// Seed offset of the case generator, so that its stream differs from the world's.
 const SEED_CASE: u64 = 0x50A4_5EED;
 
@@ -464,8 +468,14 @@ fn end_label(mode: Mode, timed_out: bool) -> String {
 pub fn run_case(case: &Case) -> Result<Outcome, RunError> {
     let mut lp = ClosedLoop::new(&case.scenario, &case.navigator, case.run.clone())?;
     let mut monitor = Monitor::new(lp.navigator().config());
+    let give_up_s = case.run.standstill_s + ACQUIRE_TIMEOUT_S;
+    let mut never_started = false;
     while !lp.is_finished() {
         lp.step()?;
+        if lp.progress().mode == Mode::Acquiring && lp.world().time_s() >= give_up_s {
+            never_started = true;
+            break;
+        }
         if let Some(tick) = lp.last_tick() {
             let truth = tick.step.truth.pose;
             monitor.observe(
@@ -485,7 +495,7 @@ pub fn run_case(case: &Case) -> Result<Outcome, RunError> {
         sim_time_s: m.sim_time_s,
         crop_contacts: monitor.crop_contacts(),
         unsafe_commands: monitor.unsafe_commands(),
-        end: end_label(m.final_mode, m.timed_out),
+        end: if never_started { "never acquired".to_owned() } else { end_label(m.final_mode, m.timed_out) },
         lanes_completed: m.lanes_completed,
         lanes_planned: m.lanes_planned,
         events: monitor.events,
