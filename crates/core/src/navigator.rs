@@ -23,10 +23,10 @@ use crate::control::lane_switch::{LaneSwitchConfig, LaneSwitcher, Mode, StopReas
 use crate::control::mpc::{Mpc, MpcConfig, SolveStatus};
 use crate::control::path::Frenet;
 use crate::control::reference::ReferenceConfig;
-use crate::error::ConfigError;
+use crate::error::{ConfigError, check_range};
 use crate::geometry::{Mount, Pose2, Twist2};
 use crate::odometry::EkfConfig;
-use crate::perception::{Detection, DetectorConfig, RowDetector, Scan};
+use crate::perception::{Detection, DetectorConfig, RowDetector, RowStatus, Scan};
 
 /// The whole navigation configuration: one section per stage, with the same dotted names in config
 /// files, `--set` overrides and ROS parameters (`detector.fov_deg`, `mpc.horizon_steps`, ...).
@@ -44,6 +44,34 @@ pub struct NavigatorConfig {
     /// Odometry EKF. Not run by the navigator (its input is already filtered odometry); kept in the
     /// same tree so the simulator and the ROS node build their [`crate::odometry::Ekf`] from one file.
     pub ekf: EkfConfig,
+    /// Checks of each step's input.
+    pub input: InputConfig,
+}
+
+/// Checks of the navigator's input (section `input`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct InputConfig {
+    /// Largest difference between a scan's stamp and the step's (odometry) stamp, s. A scan further
+    /// off in the future or the past would be placed with the pose of another moment (0.25 s at
+    /// 0.5 m/s is 12 cm along the row, and the heading of another time): it is refused, reported as a
+    /// detection with status `invalid_input`, and the step goes on without it. Default 0.25 (2.5 scan
+    /// periods: the ROS node pairs a scan with the odometry at its stamp, so only a broken clock gets
+    /// near it).
+    pub scan_stamp_tolerance_s: f64,
+}
+
+impl Default for InputConfig {
+    fn default() -> Self {
+        Self { scan_stamp_tolerance_s: 0.25 }
+    }
+}
+
+impl InputConfig {
+    /// Checks every field, naming the first bad one (`input.<field>`).
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        check_range("input.scan_stamp_tolerance_s", self.scan_stamp_tolerance_s, 0.0, 60.0)
+    }
 }
 
 impl NavigatorConfig {
@@ -54,6 +82,7 @@ impl NavigatorConfig {
         self.mpc.validate()?;
         self.lane_switch.validate()?;
         self.ekf.validate()?;
+        self.input.validate()?;
         Ok(())
     }
 }
@@ -68,7 +97,8 @@ pub struct NavInput<'a> {
     /// Body twist at `stamp_s` (logged; the controller uses its own last command for rate limits).
     pub odom_twist: Twist2,
     /// The LiDAR scan, when one completed at `stamp_s` (its stamp should equal `stamp_s`, so that
-    /// `odom` is the pose of the scan).
+    /// `odom` is the pose of the scan). A scan stamped more than `input.scan_stamp_tolerance_s` away
+    /// from `stamp_s` is refused: the output's detection has status `invalid_input`.
     pub scan: Option<Scan<'a>>,
     /// `base_link -> sensor`.
     pub mount: &'a Mount,
@@ -165,11 +195,21 @@ impl Navigator {
     }
 
     /// One control step: runs the detector on the scan, if any, then lane switching and the MPC.
+    /// A scan whose stamp is not within `input.scan_stamp_tolerance_s` of the step's is not given to
+    /// the detector; its detection reads `invalid_input` (no rows) and the step goes on without it, so
+    /// a run of such scans ends in the blind-distance stop (`no_rows`), which clears by itself.
     pub fn step(&mut self, input: NavInput<'_>) -> NavOutput {
         if let Some(fault) = self.check(&input) {
             return self.refuse(input.stamp_s, fault);
         }
-        let detection = input.scan.map(|scan| self.detector.detect(scan, input.odom, input.mount));
+        let tolerance = self.cfg.input.scan_stamp_tolerance_s;
+        let detection = input.scan.map(|scan| {
+            if (scan.stamp_s - input.stamp_s).abs() <= tolerance {
+                self.detector.detect(scan, input.odom, input.mount)
+            } else {
+                Detection::empty(scan.stamp_s, RowStatus::InvalidInput)
+            }
+        });
         self.advance(input.stamp_s, input.odom, detection, input.mpc_budget)
     }
 
@@ -268,5 +308,64 @@ impl Navigator {
         }
         self.last_cmd = out.cmd;
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Point3;
+
+    /// Ground every 0.1 m from 1 to 4 m ahead and two 0.3 m tall rows at ±0.375 m, seen by a level
+    /// sensor 1.5 m above `base_link`.
+    fn lane_points() -> Vec<Point3> {
+        let mut pts = Vec::new();
+        for i in 0..30 {
+            let x = 1.0 + 0.1 * i as f32;
+            for j in -15..=15 {
+                let y = 0.1 * j as f32;
+                let z = if (y.abs() - 0.375).abs() < 0.06 { -1.2 } else { -1.5 };
+                pts.push(Point3::new(x, y, z));
+            }
+        }
+        pts
+    }
+
+    #[test]
+    fn a_scan_stamped_away_from_the_odometry_is_refused_not_detected() {
+        let mount = Mount { x_m: 0.0, pitch_rad: 0.0, ..Mount::default() };
+        let points = lane_points();
+        let step = |nav: &mut Navigator, t: f64, scan_t: f64| {
+            nav.step(NavInput {
+                stamp_s: t,
+                odom: Pose2::default(),
+                odom_twist: Twist2::ZERO,
+                scan: Some(Scan { stamp_s: scan_t, points: &points }),
+                mount: &mount,
+                mpc_budget: None,
+            })
+        };
+        let mut nav = Navigator::new(NavigatorConfig::default()).unwrap();
+        // 0.2 s off is inside the 0.25 s tolerance: the detector sees the scan.
+        let out = step(&mut nav, 1.0, 0.8);
+        assert_ne!(out.detection.map(|d| d.status), Some(RowStatus::InvalidInput), "{out:?}");
+        // 0.5 s in the future, 0.5 s in the past, or no stamp at all: refused, zero command, no fault
+        // on the step itself (the odometry is fine).
+        for scan_t in [1.6, 0.6, f64::NAN] {
+            let out = step(&mut nav, 1.1, scan_t);
+            let d = out.detection.unwrap();
+            assert_eq!((d.status, d.left, out.input_fault), (RowStatus::InvalidInput, None, None));
+            assert_eq!(out.cmd, Twist2::ZERO);
+        }
+    }
+
+    #[test]
+    fn an_absurd_stamp_tolerance_is_refused_by_name() {
+        let cfg = NavigatorConfig {
+            input: InputConfig { scan_stamp_tolerance_s: -1.0 },
+            ..NavigatorConfig::default()
+        };
+        let e = Navigator::new(cfg).unwrap_err().to_string();
+        assert!(e.contains("input.scan_stamp_tolerance_s"), "{e}");
     }
 }

@@ -179,6 +179,7 @@ impl NodeConfig {
             mpc: self.mpc.clone(),
             lane_switch: self.lane_switch.clone(),
             ekf: self.ekf.clone(),
+            ..NavigatorConfig::default()
         }
     }
 

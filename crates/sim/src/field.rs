@@ -22,6 +22,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use serde::{Deserialize, Serialize};
 
+use crate::faults::{FaultConfig, WeedPatch};
 use crate::scene::{Class, Prim, Scene};
 use crate::terrain::Relief;
 
@@ -34,6 +35,8 @@ const WEED_ROW_CLEARANCE_M: f64 = 0.12;
 const MAX_PLANTS: f64 = 200_000.0;
 /// Most weed clumps a field may hold.
 const MAX_WEEDS: f64 = 200_000.0;
+/// Seed offset of the weed patch's own random stream (so the rest of the field does not change).
+const SEED_WEED_PATCH: u64 = 0x5EED_7A11;
 /// Weed clump height range, m (issue 3).
 const WEED_HEIGHT_M: (f64, f64) = (0.01, 0.08);
 /// Weed clump width range, m (issue 3).
@@ -217,7 +220,27 @@ pub struct Field {
 impl Field {
     /// Builds a field from its configuration and a seed; the same seed gives the same field, bit for bit.
     pub fn generate(config: &FieldConfig, seed: u64) -> Result<Self, ConfigError> {
+        Self::generate_with_faults(config, &FaultConfig::default(), seed)
+    }
+
+    /// [`Field::generate`] with the field's faults: a row gap (`faults.row_gap`) and a tall weed patch
+    /// (`faults.weed_patch`). Outside them the field is bit for bit the fault-free one: plants in the
+    /// gap are drawn and then left out, and the weed patch has its own random stream.
+    pub fn generate_with_faults(
+        config: &FieldConfig,
+        faults: &FaultConfig,
+        seed: u64,
+    ) -> Result<Self, ConfigError> {
         config.validate()?;
+        faults.validate()?;
+        let p = &faults.weed_patch;
+        let patch_clumps = p.clumps_per_m2 * p.length_m * config.row_spacing_m * f64::from(config.rows);
+        if p.enabled && patch_clumps > MAX_WEEDS {
+            return Err(ConfigError::invalid(
+                "faults.weed_patch.clumps_per_m2",
+                format!("{patch_clumps:.0} weed clumps exceed the simulator's limit of {MAX_WEEDS}"),
+            ));
+        }
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let relief = if config.relief_m > 0.0 {
             Relief::new(
@@ -253,9 +276,14 @@ impl Field {
                 let v = config.height_variation;
                 let h = (nominal * rng.random_range((1.0 - v)..=(1.0 + v))).clamp(lo, hi);
                 let base = [px, py, relief.height(px, py)];
+                let mark = prims.len();
                 match config.crop {
                     Crop::Corn => corn(&shape, base, h, &mut rng, &mut prims),
                     Crop::Soybean => soybean(&shape, base, h, &mut rng, &mut prims),
+                }
+                if faults.row_gap.covers(row, nx) {
+                    prims.truncate(mark);
+                    continue;
                 }
                 row_stems.push(Stem { x_m: px, y_m: py, row, height_m: h });
             }
@@ -263,7 +291,11 @@ impl Field {
             stems.extend(row_stems);
             row_start.push(stems.len());
         }
-        let weed_count = weeds(config, &relief, &mut rng, &mut prims);
+        let mut weed_count = weeds(config, &relief, &mut rng, &mut prims);
+        if faults.weed_patch.enabled {
+            let mut patch_rng = ChaCha8Rng::seed_from_u64(seed ^ SEED_WEED_PATCH);
+            weed_count += weed_patch(config, &faults.weed_patch, &relief, &mut patch_rng, &mut prims);
+        }
         let (y_min, y_max) = (
             -config.curve_amplitude_m,
             (config.rows - 1) as f64 * config.row_spacing_m + config.curve_amplitude_m,
@@ -390,6 +422,32 @@ fn sample_gaps(c: &FieldConfig, rng: &mut ChaCha8Rng) -> Vec<(f64, f64)> {
         x += 1.0;
     }
     gaps
+}
+
+/// Scatters the tall weed clumps of a weed patch over every inter-row; returns how many.
+fn weed_patch(
+    c: &FieldConfig,
+    p: &WeedPatch,
+    relief: &Relief,
+    rng: &mut ChaCha8Rng,
+    out: &mut Vec<Prim>,
+) -> usize {
+    let lanes = c.rows.saturating_sub(1);
+    if lanes == 0 {
+        return 0;
+    }
+    let r = 0.5 * p.width_m;
+    // Clumps stay clear of the row centres, as the field's own weeds do, and never wider than the lane.
+    let half_lane = (0.5 * c.row_spacing_m - WEED_ROW_CLEARANCE_M - r).max(0.0);
+    let n = (p.clumps_per_m2 * p.length_m * c.row_spacing_m * f64::from(lanes)).round() as usize;
+    for _ in 0..n {
+        let x = p.from_x_m + rng.random_range(0.0..=1.0) * p.length_m;
+        let lane = rng.random_range(0..lanes);
+        let y = row_y_of(c, lane, x) + 0.5 * c.row_spacing_m + rng.random_range(-1.0..=1.0) * half_lane;
+        let h = p.height_m * rng.random_range(0.5..=1.0);
+        out.push(Prim::spheroid([x, y, relief.height(x, y)], r, h, Class::Weed));
+    }
+    n
 }
 
 /// Stage- and crop-dependent plant proportions.
@@ -576,6 +634,68 @@ mod tests {
             let e = Field::generate(&c, 0).unwrap_err().to_string();
             assert!(e.contains(name), "{e}");
         }
+    }
+
+    #[test]
+    fn a_row_gap_removes_only_the_plants_inside_it() {
+        use crate::faults::RowGap;
+        let c = short(Crop::Corn, Stage::Young);
+        let clean = Field::generate(&c, 5).unwrap();
+        let faults = FaultConfig {
+            row_gap: RowGap { enabled: true, from_x_m: 8.0, length_m: 4.0, rows: vec![7, 8] },
+            ..FaultConfig::default()
+        };
+        let gap = Field::generate_with_faults(&c, &faults, 5).unwrap();
+        for row in 0..c.rows {
+            // Nominal spots inside the gap, with 5σ of the 1 cm position noise either side.
+            let inside = |s: &&Stem| s.x_m > 8.05 && s.x_m < 11.95;
+            let kept: Vec<_> = clean.row_stems(row).iter().filter(|s| !inside(s)).collect();
+            let got: Vec<_> = gap.row_stems(row).iter().filter(|s| !inside(s)).collect();
+            if row == 7 || row == 8 {
+                assert_eq!(gap.row_stems(row).iter().filter(inside).count(), 0, "row {row}");
+                assert!(clean.row_stems(row).iter().filter(inside).count() > 15, "row {row}");
+            } else {
+                assert_eq!(gap.row_stems(row), clean.row_stems(row), "row {row}");
+            }
+            assert!(got.len() <= kept.len() && got.len() + 1 >= kept.len(), "row {row}");
+        }
+    }
+
+    #[test]
+    fn a_weed_patch_adds_tall_weeds_between_the_rows_only() {
+        use crate::faults::WeedPatch;
+        let c = short(Crop::Corn, Stage::Young);
+        let clean = Field::generate(&c, 5).unwrap();
+        let huge = FaultConfig {
+            weed_patch: WeedPatch {
+                enabled: true,
+                length_m: 2000.0,
+                clumps_per_m2: 50.0,
+                ..WeedPatch::default()
+            },
+            ..FaultConfig::default()
+        };
+        let e = Field::generate_with_faults(&c, &huge, 5).unwrap_err().to_string();
+        assert!(e.contains("faults.weed_patch.clumps_per_m2"), "{e}");
+        let faults = FaultConfig {
+            weed_patch: WeedPatch { enabled: true, ..WeedPatch::default() },
+            ..FaultConfig::default()
+        };
+        let patch = Field::generate_with_faults(&c, &faults, 5).unwrap();
+        // 3 clumps/m² over 3 m of 15 inter-rows 0.75 m wide.
+        assert_eq!(patch.weed_count() - clean.weed_count(), 101);
+        assert_eq!(patch.stems(), clean.stems());
+        // A vertical ray down the middle of a lane inside the patch meets a weed up to 0.5 m tall
+        // somewhere; outside the patch the lane is at most the field's own 8 cm weeds.
+        let top = |x: f64, y: f64| {
+            patch.scene().cast([x as f32, y as f32, 2.0], [0.0, 0.0, -1.0], 3.0).map(|(t, _)| 2.0 - t as f64)
+        };
+        let tallest_inside =
+            (0..300).filter_map(|i| top(8.0 + 0.01 * i as f64, patch.lane_y(7, 0.0))).fold(0.0, f64::max);
+        let tallest_outside =
+            (0..300).filter_map(|i| top(14.0 + 0.01 * i as f64, patch.lane_y(7, 0.0))).fold(0.0, f64::max);
+        assert!(tallest_inside > 0.2 && tallest_inside <= 0.5 + 1e-3, "{tallest_inside}");
+        assert!(tallest_outside < 0.09, "{tallest_outside}");
     }
 
     #[test]

@@ -11,6 +11,7 @@
 //!                 ──► Robot (true pose) ──► Sensors (wheel odometry, IMU)
 //! World::step(cmd) ties them together at a fixed dt; Driver is the human operator of detection runs;
 //! metrics score detections (Table I), cross-track error and crop contacts against the truth.
+//! faults (a scenario's [faults] table) inject what a field throws at a robot, each where it happens.
 //! ```
 //!
 //! Every random process has its own `ChaCha8Rng` seeded from the scenario seed: the same scenario gives
@@ -35,6 +36,7 @@
 pub mod closed_loop;
 pub mod driver;
 pub mod experiment;
+pub mod faults;
 pub mod field;
 pub mod lidar;
 pub mod metrics;
@@ -47,6 +49,7 @@ pub mod world;
 
 pub use closed_loop::{ClosedLoop, Metrics, Run, RunConfig, RunError};
 pub use driver::{Driver, DriverConfig};
+pub use faults::FaultConfig;
 pub use field::{Crop, Field, FieldConfig, Stage, Stem};
 pub use lidar::{BodyPose, Lidar, LidarConfig, ScanBuffer};
 pub use metrics::{CropDamage, CrossTrack, DetectionErrors, ErrorStats, RowError, TrueRow};

@@ -17,11 +17,14 @@ use rand_distr::{Distribution, StandardNormal};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
+use crate::faults::SlipPatch;
 use crate::field::Field;
 use crate::lidar::BodyPose;
 
 /// Correlation time of the slip and yaw disturbances, s: soil changes over a few metres.
 const DISTURBANCE_TAU_S: f64 = 1.0;
+/// Forward speed at which a slip patch's lateral drift is its configured value, m/s.
+const DRIFT_REFERENCE_SPEED_M_S: f64 = 0.5;
 
 /// Parameters of the robot. Defaults: the paper's Amiga (Sec. III-A) with typical skid-steer slip.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -142,6 +145,8 @@ pub struct Robot {
     accel: (f64, f64),
     slip: f64,
     yaw_disturbance: f64,
+    /// Wet soil (`faults.slip_patch`); off unless set.
+    slip_patch: SlipPatch,
     rng: ChaCha8Rng,
 }
 
@@ -162,6 +167,7 @@ impl Robot {
             accel: (0.0, 0.0),
             slip: config.longitudinal_slip,
             yaw_disturbance: 0.0,
+            slip_patch: SlipPatch::default(),
             rng: ChaCha8Rng::seed_from_u64(seed),
         })
     }
@@ -206,6 +212,12 @@ impl Robot {
         self.config.wheel_positions().map(|(x, y)| self.pose.transform_point(x, y))
     }
 
+    /// Sets a patch of wet soil (`faults.slip_patch`): while the true x is inside it the slip ratio is
+    /// the patch's and the body slides sideways (see [`SlipPatch`]).
+    pub fn set_slip_patch(&mut self, patch: SlipPatch) {
+        self.slip_patch = patch;
+    }
+
     /// Puts the robot down on the terrain at its current planar pose (z, roll, pitch).
     pub(crate) fn settle(&mut self, field: &Field) {
         self.body = terrain_body(field, self.pose);
@@ -240,12 +252,17 @@ impl Robot {
             (StandardNormal.sample(&mut self.rng), StandardNormal.sample(&mut self.rng));
         self.slip = c.longitudinal_slip + a * (self.slip - c.longitudinal_slip) + q * c.slip_variation * n1;
         self.yaw_disturbance = a * self.yaw_disturbance + q * c.yaw_disturbance_rad_s * n2;
-        let s = self.slip.clamp(0.0, 0.9);
+        let wet = self.slip_patch.covers(self.pose.x);
+        // The soil's own slip variation rides on the patch's mean (the OU process keeps running).
+        let s =
+            if wet { self.slip_patch.longitudinal_slip + self.slip - c.longitudinal_slip } else { self.slip }
+                .clamp(0.0, 0.9);
 
         let (vl, vr) = self.wheels;
         let v = (1.0 - s) * 0.5 * (vl + vr);
         let omega = (1.0 - s) * (vr - vl) / b_eff + if v.abs() > 0.01 { self.yaw_disturbance } else { 0.0 };
-        let lateral = c.lateral_slip_gain * v * omega;
+        let drift = if wet { self.slip_patch.lateral_drift_m_s * v / DRIFT_REFERENCE_SPEED_M_S } else { 0.0 };
+        let lateral = c.lateral_slip_gain * v * omega + drift;
 
         // Midpoint integration of the planar motion.
         let mid = self.pose.yaw + 0.5 * omega * dt_s;
@@ -336,6 +353,28 @@ mod tests {
         // 10 % slip: 0.9 m/s instead of 1 m/s (tolerance 1e-6 m/s).
         assert!((r.twist().v - 0.9).abs() < 1e-6);
         assert!((r.wheel_speeds().0 - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_slip_patch_slows_the_robot_and_pushes_it_sideways_inside_it_only() {
+        let f = flat_field();
+        let mut r = Robot::new(&ideal(), Pose2::default(), 0).unwrap();
+        r.set_slip_patch(SlipPatch {
+            enabled: true,
+            from_x_m: 5.0,
+            to_x_m: 10.0,
+            longitudinal_slip: 0.3,
+            lateral_drift_m_s: 0.05,
+        });
+        drive(&mut r, Twist2::new(1.0, 0.0), 5.0, &f);
+        assert!(r.pose().x < 5.0 && r.pose().y == 0.0, "{:?}", r.pose());
+        drive(&mut r, Twist2::new(1.0, 0.0), 3.0, &f);
+        // Inside: 30 % slip, so 0.7 m/s, drifting 0.05 · 0.7 / 0.5 = 0.07 m/s left (tolerance 1e-6 m/s).
+        assert!(r.pose().x > 5.0 && r.pose().x < 10.0, "{:?}", r.pose());
+        assert!((r.twist().v - 0.7).abs() < 1e-6 && (r.lateral_velocity_m_s() - 0.07).abs() < 1e-6);
+        assert!((r.wheel_speeds().0 - 1.0).abs() < 1e-6);
+        drive(&mut r, Twist2::new(1.0, 0.0), 6.0, &f);
+        assert!(r.pose().x > 10.0 && (r.twist().v - 1.0).abs() < 1e-6 && r.lateral_velocity_m_s() == 0.0);
     }
 
     #[test]

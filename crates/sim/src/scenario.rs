@@ -18,6 +18,7 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use crate::driver::DriverConfig;
+use crate::faults::FaultConfig;
 use crate::field::FieldConfig;
 use crate::lidar::LidarConfig;
 use crate::robot::RobotConfig;
@@ -116,6 +117,8 @@ pub struct Scenario {
     pub driver: DriverConfig,
     /// Time step.
     pub world: WorldConfig,
+    /// Injected faults (issue 6), all off by default.
+    pub faults: FaultConfig,
 }
 
 impl Default for Scenario {
@@ -131,6 +134,7 @@ impl Default for Scenario {
             start: StartConfig::default(),
             driver: DriverConfig::default(),
             world: WorldConfig::default(),
+            faults: FaultConfig::default(),
         }
     }
 }
@@ -172,6 +176,13 @@ impl Scenario {
         self.robot.validate()?;
         self.sensors.validate()?;
         self.driver.validate()?;
+        self.faults.validate()?;
+        if let Some(row) = self.faults.row_gap.rows.iter().find(|&&r| r >= self.field.rows) {
+            return Err(ConfigError::invalid(
+                "faults.row_gap.rows",
+                format!("row {row} does not exist: the field has {} rows", self.field.rows),
+            ));
+        }
         if self.field.rows < 2 || self.lane() > self.field.rows - 2 {
             return Err(ConfigError::invalid(
                 "start.lane",
@@ -236,5 +247,18 @@ mod tests {
         assert!(e.contains("lidar.mount.z_m"), "{e}");
         let e = Scenario::from_toml_str("[start]\nlane = 15\n").unwrap_err().to_string();
         assert!(e.contains("start.lane"), "{e}");
+    }
+
+    #[test]
+    fn faults_are_a_validated_table() {
+        let s = Scenario::from_toml_str("[faults.slip_patch]\nenabled = true\nlongitudinal_slip = 0.4\n")
+            .unwrap();
+        assert!(s.faults.slip_patch.enabled && s.faults.slip_patch.longitudinal_slip == 0.4);
+        let e = Scenario::from_toml_str("[faults.slip_patch]\nlongitudinal_slip = 0.9\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("faults.slip_patch.longitudinal_slip"), "{e}");
+        let e = Scenario::from_toml_str("[faults.row_gap]\nrows = [16]\n").unwrap_err().to_string();
+        assert!(e.contains("faults.row_gap.rows"), "{e}");
     }
 }

@@ -12,6 +12,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use serde::{Deserialize, Serialize};
 
+use crate::faults::GyroBiasStep;
 use crate::robot::Robot;
 
 /// Parameters of the encoders and the IMU.
@@ -102,6 +103,9 @@ pub struct Sensors {
     effective_track_m: f64,
     next_wheel_s: f64,
     next_imu_s: f64,
+    /// `faults.gyro_bias_step`, and whether the robot has passed it (the step stays).
+    bias_step: GyroBiasStep,
+    bias_stepped: bool,
     rng: ChaCha8Rng,
 }
 
@@ -120,8 +124,16 @@ impl Sensors {
             effective_track_m,
             next_wheel_s: start_s,
             next_imu_s: start_s,
+            bias_step: GyroBiasStep::default(),
+            bias_stepped: false,
             rng: ChaCha8Rng::seed_from_u64(seed),
         })
+    }
+
+    /// Sets a gyro bias step (`faults.gyro_bias_step`): once the robot's true x passes `at_x_m` the
+    /// gyro reads `step_rad_s` more, for good. Perfect odometry ignores it.
+    pub fn set_gyro_bias_step(&mut self, step: GyroBiasStep) {
+        self.bias_step = step;
     }
 
     /// The configuration.
@@ -175,10 +187,13 @@ impl Sensors {
                 accel_y_m_s2: ay,
             });
         }
+        self.bias_stepped |= self.bias_step.enabled && robot.pose().x >= self.bias_step.at_x_m;
+        let bias =
+            self.config.gyro_bias_rad_s + if self.bias_stepped { self.bias_step.step_rad_s } else { 0.0 };
         let c = self.config.clone();
         Some(ImuSample {
             stamp_s: now_s,
-            gyro_z_rad_s: omega + c.gyro_bias_rad_s + self.noise(c.gyro_noise_rad_s),
+            gyro_z_rad_s: omega + bias + self.noise(c.gyro_noise_rad_s),
             accel_x_m_s2: ax + c.accel_bias_m_s2 + self.noise(c.accel_noise_m_s2),
             accel_y_m_s2: ay + c.accel_bias_m_s2 + self.noise(c.accel_noise_m_s2),
         })
@@ -233,6 +248,30 @@ mod tests {
         let late: Vec<_> = w.iter().skip(500).collect();
         let v = late.iter().map(|m| m.twist.v).sum::<f64>() / late.len() as f64;
         assert!((v - 1.05).abs() < 0.005, "{v}");
+    }
+
+    #[test]
+    fn a_gyro_bias_step_adds_to_the_bias_once_passed() {
+        let f =
+            Field::generate(&FieldConfig { rows: 1, length_m: 1.0, ..FieldConfig::default() }, 0).unwrap();
+        let rc = RobotConfig::default();
+        let mut robot = Robot::new(&rc, Pose2::default(), 1).unwrap();
+        let cfg = SensorConfig { gyro_noise_rad_s: 0.0, ..SensorConfig::default() };
+        let mut s = Sensors::new(&cfg, rc.effective_track_m(), 0.01, 2).unwrap();
+        s.set_gyro_bias_step(GyroBiasStep { enabled: true, at_x_m: 2.0, step_rad_s: 0.02 });
+        let mut errors = Vec::new();
+        for k in 1..=1000 {
+            // Forward 1 m/s for 5 s, then back for 5 s: the step, once passed, stays.
+            let v = if k <= 500 { 1.0 } else { -1.0 };
+            robot.step(Twist2::new(v, 0.0), 0.01, &f).unwrap();
+            let m = s.imu(k as f64 * 0.01, &robot).unwrap();
+            errors.push((robot.pose().x, m.gyro_z_rad_s - robot.twist().omega));
+        }
+        // Noise-free: the error is the bias exactly (tolerance 1e-12 rad/s).
+        let before = errors.iter().take_while(|(x, _)| *x < 2.0);
+        assert!(before.clone().count() > 100 && before.clone().all(|(_, e)| (e - 0.005).abs() < 1e-12));
+        let after = errors.iter().skip_while(|(x, _)| *x < 2.0);
+        assert!(after.clone().count() > 500 && after.clone().all(|(_, e)| (e - 0.025).abs() < 1e-12));
     }
 
     #[test]

@@ -14,6 +14,7 @@
 //!                                                      Done
 //! Following: rows Lost, or no row for `max_blind_distance_m`, farther than `end_approach_m`
 //!            from a row end the detector has seen ─► Stopped { RowsLost | NoRows }
+//!            ─► `resume_confirmations` consecutive detections of the lane followed before ─► Following
 //! Always:    rows at a spacing over `spacing_tolerance` off `row_spacing_m` are not believed (no row)
 //! Following: a centre line over `max_line_jump_m` from the one followed is not believed (no row)
 //! Entering:  rows disagree with the planned lane ─► Stopped { WrongLane };
@@ -131,6 +132,12 @@ pub struct LaneSwitchConfig {
     /// m. A larger one (the rows of a neighbouring lane, seen for a scan) is not believed and counts
     /// as no row. Default 0.25 (a third of a row spacing; scan-to-scan changes are centimetres).
     pub max_line_jump_m: f64,
+    /// Consecutive detections needed to leave a stop whose cause can clear by itself (`rows_lost`,
+    /// `no_rows`: a LiDAR dropout, dust, a gap in the rows) and follow again: each must be `tracking`
+    /// and its centre line within `entry_lateral_tolerance_m` and `entry_heading_tolerance_rad` of the
+    /// line followed before the stop (the robot stood still: the lane cannot have changed). 0 latches
+    /// every stop until [`LaneSwitcher::resume`]. Default 5 (half a second of scans at 10 Hz).
+    pub resume_confirmations: u32,
 }
 
 impl Default for LaneSwitchConfig {
@@ -160,6 +167,7 @@ impl Default for LaneSwitchConfig {
             default_row_end_ahead_m: 1.6,
             spacing_tolerance: 0.25,
             max_line_jump_m: 0.25,
+            resume_confirmations: 5,
         }
     }
 }
@@ -192,6 +200,7 @@ impl LaneSwitchConfig {
         check_range("lane_switch.default_row_end_ahead_m", self.default_row_end_ahead_m, -10.0, 10.0)?;
         check_range("lane_switch.spacing_tolerance", self.spacing_tolerance, 0.01, 10.0)?;
         check_range("lane_switch.max_line_jump_m", self.max_line_jump_m, 0.01, 10.0)?;
+        check_range("lane_switch.resume_confirmations", f64::from(self.resume_confirmations), 0.0, 1000.0)?;
         let shift = self.shift_m();
         check_range("lane_switch.turn_radius_m", self.turn_radius_m, 0.05, 0.5 * shift)?;
         let start = self.turn_start_m();
@@ -257,7 +266,9 @@ impl LaneSwitchConfig {
     }
 }
 
-/// Why the robot stopped. Every stop is latched until [`LaneSwitcher::resume`].
+/// Why the robot stopped. A stop whose cause can clear by itself ([`StopReason::clears_by_itself`]:
+/// rows lost, no rows) ends when the detector tracks the same lane again for
+/// `lane_switch.resume_confirmations` scans; every other stop is latched until [`LaneSwitcher::resume`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum StopReason {
@@ -276,6 +287,13 @@ pub enum StopReason {
 }
 
 impl StopReason {
+    /// True for the stops that end by themselves once the rows are tracked again (`RowsLost`,
+    /// `NoRows`: a sensor dropout, clutter, a gap in the rows). A wrong lane, an unconfirmed re-entry,
+    /// bad odometry and a solver failure need a person (or [`LaneSwitcher::resume`]).
+    pub fn clears_by_itself(&self) -> bool {
+        matches!(self, StopReason::RowsLost | StopReason::NoRows)
+    }
+
     /// Stable lower-case name.
     pub fn as_str(&self) -> &'static str {
         match self {
@@ -366,6 +384,8 @@ pub struct LaneSwitcher {
     lane: u32,
     agree: u32,
     disagree: u32,
+    /// Consecutive detections of the stopped-at lane, towards an automatic resume.
+    resume_agree: u32,
     max_excursion_m: f64,
 }
 
@@ -387,6 +407,7 @@ impl LaneSwitcher {
             lane: cfg.start_lane,
             agree: 0,
             disagree: 0,
+            resume_agree: 0,
             max_excursion_m: 0.0,
             cfg,
         })
@@ -520,6 +541,9 @@ impl LaneSwitcher {
                 }
             }
             Mode::Entering => self.enter(odom, detection),
+            Mode::Stopped { reason } if reason.clears_by_itself() && self.cfg.resume_confirmations > 0 => {
+                self.recover(odom, detection);
+            }
             Mode::Done | Mode::Stopped { .. } => {}
         }
         self.guidance(reset_detector)
@@ -551,6 +575,7 @@ impl LaneSwitcher {
     fn enter_following(&mut self, odom: &Pose2) {
         self.mode = Mode::Following;
         self.blind_m = 0.0;
+        self.resume_agree = 0;
         self.row_end = None;
         self.exit_line = None;
         self.s_hint_m = self.reference.path().map_or(0.0, |p| p.project(odom, 0.0).s_m);
@@ -602,6 +627,26 @@ impl LaneSwitcher {
         };
         let on_line = odom.compose(&line.pose());
         path.project(&on_line, self.s_hint_m).lateral_m.abs() <= self.cfg.max_line_jump_m
+    }
+
+    /// While stopped for a cause that clears by itself: counts consecutive detections of the lane that
+    /// was followed (a steps without a scan keeps the count) and follows again after
+    /// `resume_confirmations` of them. The row end is forgotten: the detector will report it again.
+    fn recover(&mut self, odom: &Pose2, detection: Option<&Detection>) {
+        let Some(d) = detection else { return };
+        let same_lane = d.status == RowStatus::Tracking
+            && self.reference.centre_line(d).is_some_and(|line| {
+                let seen = odom.compose(&line.pose());
+                self.reference.path().is_none_or(|path| {
+                    let f = path.project(&seen, self.s_hint_m);
+                    f.lateral_m.abs() <= self.cfg.entry_lateral_tolerance_m
+                        && f.heading_rad.abs() <= self.cfg.entry_heading_tolerance_rad
+                })
+            });
+        self.resume_agree = if same_lane { self.resume_agree.saturating_add(1) } else { 0 };
+        if self.resume_agree >= self.cfg.resume_confirmations && self.reference.update(d, odom) {
+            self.enter_following(odom);
+        }
     }
 
     /// The row end `ahead` metres along the current centre line from the robot.
@@ -712,6 +757,92 @@ fn along(end: &Pose2, pose: &Pose2) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::perception::RowEstimate;
+
+    /// Rows at ±0.375 m with heading 0 seen from `odom` shifted `dy` to the left of the lane y = 0:
+    /// the detection a robot at `(x, dy, 0)` makes of the lane y = 0 (plus `offset_m` of error).
+    fn rows(t: f64, dy: f64) -> Detection {
+        let row = |offset_m: f64| RowEstimate {
+            line: [0.0, offset_m, 3.0, offset_m],
+            offset_m,
+            heading_rad: 0.0,
+            curvature_per_m: 0.0,
+            confidence: 1.0,
+        };
+        Detection {
+            left: Some(row(0.375 - dy)),
+            right: Some(row(-0.375 - dy)),
+            row_spacing_m: Some(0.75),
+            ..Detection::empty(t, RowStatus::Tracking)
+        }
+    }
+
+    /// A switcher following the lane y = 0 and then stopped by lost rows at x = 2.
+    fn stopped_by_lost_rows(cfg: LaneSwitchConfig) -> LaneSwitcher {
+        let mut sw = LaneSwitcher::new(cfg, ReferenceConfig::default()).unwrap();
+        sw.update(&Pose2::new(1.0, 0.0, 0.0), Some(&rows(0.0, 0.0)));
+        assert_eq!(sw.mode(), Mode::Following);
+        let g = sw.update(&Pose2::new(2.0, 0.0, 0.0), Some(&Detection::empty(0.1, RowStatus::Lost)));
+        assert_eq!(g.mode, Mode::Stopped { reason: StopReason::RowsLost });
+        sw
+    }
+
+    #[test]
+    fn a_rows_lost_stop_resumes_after_enough_consistent_detections() {
+        let mut sw = stopped_by_lost_rows(LaneSwitchConfig::default());
+        let at = Pose2::new(2.0, 0.0, 0.0);
+        for k in 0..4 {
+            let g = sw.update(&at, Some(&rows(0.2 + 0.1 * k as f64, 0.0)));
+            assert_eq!((g.mode, g.speed_mps), (Mode::Stopped { reason: StopReason::RowsLost }, 0.0));
+            // Control steps between scans keep the count.
+            sw.update(&at, None);
+        }
+        let g = sw.update(&at, Some(&rows(0.6, 0.0)));
+        assert_eq!(g.mode, Mode::Following);
+        assert!(g.speed_mps > 0.0);
+    }
+
+    #[test]
+    fn an_inconsistent_detection_restarts_the_resume_count() {
+        let mut sw = stopped_by_lost_rows(LaneSwitchConfig::default());
+        let at = Pose2::new(2.0, 0.0, 0.0);
+        for k in 0..4 {
+            sw.update(&at, Some(&rows(0.2 + 0.1 * k as f64, 0.0)));
+        }
+        // The neighbouring lane (0.75 m over) or a searching detector breaks the streak.
+        sw.update(&at, Some(&rows(0.6, 0.75)));
+        for k in 0..4 {
+            sw.update(&at, Some(&rows(0.7 + 0.1 * k as f64, 0.0)));
+        }
+        assert_eq!(sw.mode(), Mode::Stopped { reason: StopReason::RowsLost });
+        sw.update(&at, Some(&Detection::empty(1.1, RowStatus::Searching)));
+        for k in 0..4 {
+            sw.update(&at, Some(&rows(1.2 + 0.1 * k as f64, 0.0)));
+        }
+        assert_eq!(sw.mode(), Mode::Stopped { reason: StopReason::RowsLost });
+        sw.update(&at, Some(&rows(1.6, 0.0)));
+        assert_eq!(sw.mode(), Mode::Following);
+    }
+
+    #[test]
+    fn latched_stops_do_not_resume_by_themselves() {
+        let at = Pose2::new(2.0, 0.0, 0.0);
+        // With resume_confirmations = 0 every stop is latched.
+        let mut sw = stopped_by_lost_rows(LaneSwitchConfig { resume_confirmations: 0, ..Default::default() });
+        for k in 0..20 {
+            sw.update(&at, Some(&rows(0.2 + 0.1 * k as f64, 0.0)));
+        }
+        assert_eq!(sw.mode(), Mode::Stopped { reason: StopReason::RowsLost });
+        for reason in [StopReason::SolverFailed, StopReason::WrongLane, StopReason::ReentryNotConfirmed] {
+            let mut sw = stopped_by_lost_rows(LaneSwitchConfig::default());
+            sw.stop(reason);
+            for k in 0..20 {
+                sw.update(&at, Some(&rows(0.2 + 0.1 * k as f64, 0.0)));
+            }
+            assert_eq!(sw.mode(), Mode::Stopped { reason });
+            assert!(!reason.clears_by_itself());
+        }
+    }
 
     #[test]
     fn default_turn_fits_the_headland() {

@@ -7,9 +7,12 @@
 //! (the wheels scrub sideways), so its variance grows with the yaw rate: in turns heading comes from
 //! the gyro, while driving straight the wheels make the gyro bias observable.
 //!
-//! Every call is stamped. A stamp before the filter's time, a non-finite value, or a gap longer than
-//! `ekf.max_gap_s` is rejected with an [`EkfError`] and the state is kept (after a gap the filter's
-//! clock moves to the new stamp so that the next sample is accepted again).
+//! Every call is stamped. Samples may arrive a little out of order (stamp jitter, two streams
+//! interleaved, a message delivered after a newer one): a sample at most `ekf.max_lag_s` older than
+//! the filter's time is fused at the filter's time, because the speeds it measures barely change in
+//! that time. An older stamp, a non-finite value, or a gap longer than `ekf.max_gap_s` is rejected with
+//! an [`EkfError`] and the state is kept (after a gap the filter's clock moves to the new stamp so that
+//! the next sample is accepted again).
 
 use nalgebra::{SMatrix, SVector};
 use serde::{Deserialize, Serialize};
@@ -58,6 +61,11 @@ pub struct EkfConfig {
     pub initial_bias_std_radps: f64,
     /// Longest accepted time between two samples, s. Default 0.5.
     pub max_gap_s: f64,
+    /// Oldest a sample may be relative to the filter's time and still be fused (at the filter's time),
+    /// s; older samples are rejected as [`EkfError::TimeBackwards`]. Default 0: every sample older than
+    /// the filter is rejected. 0.03 (three IMU periods at 100 Hz) absorbs stamp jitter and a wheel
+    /// message overtaken by the next one (`croprow_sim::closed_loop::sim_navigator` uses it).
+    pub max_lag_s: f64,
 }
 
 impl Default for EkfConfig {
@@ -73,6 +81,7 @@ impl Default for EkfConfig {
             gyro_std_radps: 0.005,
             initial_bias_std_radps: 0.02,
             max_gap_s: 0.5,
+            max_lag_s: 0.0,
         }
     }
 }
@@ -90,6 +99,7 @@ impl EkfConfig {
         check_range("ekf.gyro_std_radps", self.gyro_std_radps, 1e-6, 10.0)?;
         check_range("ekf.initial_bias_std_radps", self.initial_bias_std_radps, 0.0, 1.0)?;
         check_range("ekf.max_gap_s", self.max_gap_s, 1e-3, 60.0)?;
+        check_range("ekf.max_lag_s", self.max_lag_s, 0.0, self.max_gap_s)?;
         Ok(())
     }
 }
@@ -98,7 +108,7 @@ impl EkfConfig {
 #[derive(Debug, Clone, PartialEq, Error)]
 #[non_exhaustive]
 pub enum EkfError {
-    /// The stamp is before the filter's time.
+    /// The stamp is more than `ekf.max_lag_s` before the filter's time.
     #[error("time went backwards: sample at {stamp_s} s, filter at {filter_s} s")]
     TimeBackwards {
         /// Stamp of the rejected sample, s.
@@ -184,7 +194,8 @@ impl Ekf {
         self.stamp_s
     }
 
-    /// Predicts the state forward to `stamp_s`. The first stamped call only sets the clock.
+    /// Predicts the state forward to `stamp_s`. The first stamped call only sets the clock; a stamp at
+    /// most `ekf.max_lag_s` in the past leaves the state where it is (a late sample is fused now).
     pub fn predict_to(&mut self, stamp_s: f64) -> Result<(), EkfError> {
         if !stamp_s.is_finite() {
             return Err(EkfError::NonFinite { what: "stamp" });
@@ -194,15 +205,15 @@ impl Ekf {
             return Ok(());
         };
         let dt = stamp_s - t;
-        if dt < 0.0 {
+        if dt < -self.cfg.max_lag_s {
             return Err(EkfError::TimeBackwards { stamp_s, filter_s: t });
+        }
+        if dt <= 0.0 {
+            return Ok(());
         }
         if dt > self.cfg.max_gap_s {
             self.stamp_s = Some(stamp_s);
             return Err(EkfError::TimeGap { gap_s: dt });
-        }
-        if dt == 0.0 {
-            return Ok(());
         }
         let (psi, v, w) = (self.x[PSI], self.x[V], self.x[W]);
         // Midpoint heading: exact for straight lines, second-order on arcs.
@@ -436,6 +447,24 @@ mod tests {
     }
 
     #[test]
+    fn a_sample_overtaken_by_a_newer_one_is_fused_within_the_lag() {
+        let mut strict = Ekf::new(EkfConfig::default()).unwrap();
+        strict.update_imu(1.02, 0.0).unwrap();
+        assert!(matches!(strict.update_wheel(1.01, 0.6, 0.0), Err(EkfError::TimeBackwards { .. })));
+        let mut ekf = Ekf::new(EkfConfig { max_lag_s: 0.03, ..EkfConfig::default() }).unwrap();
+        ekf.update_wheel(1.0, 0.5, 0.0).unwrap();
+        ekf.update_imu(1.02, 0.0).unwrap();
+        let pose = ekf.pose();
+        // A wheel message stamped 1.0 + 0.01 arrives after the IMU sample of 1.02: 10 ms late.
+        ekf.update_wheel(1.01, 0.6, 0.0).unwrap();
+        assert_eq!((ekf.stamp_s(), ekf.pose()), (Some(1.02), pose));
+        assert!(ekf.twist().v > 0.5, "{:?}", ekf.twist());
+        // 40 ms late is more than the 30 ms lag: rejected.
+        assert!(matches!(ekf.update_wheel(0.98, 3.0, 0.0), Err(EkfError::TimeBackwards { .. })));
+        assert!(ekf.predict_to(1.0).is_ok() && ekf.stamp_s() == Some(1.02));
+    }
+
+    #[test]
     fn non_finite_inputs_are_rejected_and_state_kept() {
         let mut ekf = Ekf::new(EkfConfig::default()).unwrap();
         ekf.update_wheel(0.0, 0.5, 0.0).unwrap();
@@ -477,5 +506,7 @@ mod tests {
     fn absurd_config_is_refused() {
         let cfg = EkfConfig { gyro_std_radps: -1.0, ..EkfConfig::default() };
         assert!(Ekf::new(cfg).unwrap_err().to_string().contains("ekf.gyro_std_radps"));
+        let cfg = EkfConfig { max_lag_s: 1.0, ..EkfConfig::default() };
+        assert!(Ekf::new(cfg).unwrap_err().to_string().contains("ekf.max_lag_s"));
     }
 }
