@@ -8,8 +8,9 @@
 //! # The cases
 //! [`soak_case`] draws from the seed alone: crop and stage, 10-15 m rows, 0.70-0.80 m spacing, a
 //! gentle curve, missing plants, gaps, weeds, relief, the start lane and pose, 2 or 3 lanes to drive
-//! (1-2 headland turns, alternately left and right, sometimes skipping a lane) and, for some runs, a
-//! fault. A run drives about 20-45 m. The row curve's skew at the row ends is kept under
+//! (1-2 headland turns, alternately left and right, sometimes skipping a lane) and none, one or two
+//! faults from [`crate::faults`] (or a LiDAR that dies for good), placed along the rows with
+//! parameters in the ranges. A run drives about 20-45 m. The row curve's skew at the row ends is kept under
 //! [`MAX_END_SKEW_RAD`]: the headland turn assumes a square headland edge
 //! ([`croprow_core::control::lane_switch`]), and a skewed one is a known limit, not a soak finding.
 //!
@@ -59,8 +60,10 @@ const MAX_EVENTS: usize = 8;
 /// A run whose navigator is still acquiring this long after the standstill ends there, s: a robot
 /// that never starts is safe, and waiting out the time limit would only slow the soak down.
 pub const ACQUIRE_TIMEOUT_S: f64 = 20.0;
-/// Seed offset of the case generator, so that its stream differs from the world's.
+/// Seed offsets of the case generator's streams (field and mission; faults), so that they differ
+/// from each other and from the world's.
 const SEED_CASE: u64 = 0x50A4_5EED;
+const SEED_FAULTS: u64 = 0xFA17_5EED;
 
 /// One soak run: everything `croprow simulate` needs to replay it.
 #[derive(Debug, Clone, PartialEq)]
@@ -132,12 +135,9 @@ pub fn soak_case(seed: u64) -> Case {
         max_time_s: round(60.0 + 2.0 * (drive_s + f64::from(lanes - 1) * 30.0), 1.0),
         ..RunConfig::default()
     };
-    let mut faults = Vec::new();
-    if rng.random_bool(0.15) {
-        let after = round(rng.random_range(2.0..=f64::from(lanes) * length), 0.01);
-        run.lidar_blackout_after_m = Some(after);
-        faults.push(format!("LiDAR dead after {after} m"));
-    }
+    // Faults from their own stream: the field and mission of a seed do not depend on them.
+    let mut fault_rng = ChaCha8Rng::seed_from_u64(seed ^ SEED_FAULTS);
+    let faults = draw_faults(&mut fault_rng, &mut s, &mut run, lanes);
     let overrides = vec![
         format!("run.lanes={lanes}"),
         format!("run.max_time_s={:?}", run.max_time_s),
@@ -175,6 +175,124 @@ pub fn soak_case(seed: u64) -> Case {
     Case { seed, scenario: s, navigator, run, overrides }
 }
 
+/// Fault kinds a case may draw: the simulator's ten ([`crate::faults`]) and a LiDAR that dies for good.
+const FAULT_KINDS: usize = 11;
+
+/// Draws none (35 %), one (45 %) or two (20 %) distinct faults into the scenario and the run, placed
+/// along the rows of a field `s.field.length_m` long; returns their one-line descriptions.
+fn draw_faults(rng: &mut ChaCha8Rng, s: &mut Scenario, run: &mut RunConfig, lanes: u32) -> Vec<String> {
+    let count = match rng.random_range(0.0..1.0) {
+        p if p < 0.35 => 0,
+        p if p < 0.8 => 1,
+        _ => 2,
+    };
+    let first = rng.random_range(0..FAULT_KINDS);
+    let second = (first + rng.random_range(1..FAULT_KINDS)) % FAULT_KINDS;
+    let length = s.field.length_m;
+    let rows = s.field.rows;
+    let f = &mut s.faults;
+    let mut out = Vec::new();
+    for kind in [first, second].into_iter().take(count) {
+        // A stretch [from, to] of the rows, m, at least 1 m from their ends.
+        let mut stretch = |min_m: f64, max_m: f64| {
+            let len = round(rng.random_range(min_m..=max_m), 0.1);
+            let from = round(rng.random_range(1.0..=(length - 1.0 - len).max(1.0)), 0.1);
+            (from, from + len)
+        };
+        let (from, to) = stretch(1.0, 6.0);
+        let text = match kind {
+            0 => {
+                let d = &mut f.lidar_dropout;
+                d.enabled = true;
+                d.from_x_m = from;
+                d.duration_s = round(rng.random_range(0.3..=2.0), 0.1);
+                d.repeat_every_m =
+                    if rng.random_bool(0.3) { round(rng.random_range(3.0..=8.0), 0.1) } else { 0.0 };
+                format!("LiDAR dropout {:.1} s at x {from} m (repeat {} m)", d.duration_s, d.repeat_every_m)
+            }
+            1 => {
+                let p = &mut f.partial_scan;
+                (p.enabled, p.from_x_m, p.to_x_m) = (true, from, to);
+                p.sector_centre_deg = round(rng.random_range(-180.0..=180.0), 1.0);
+                p.sector_width_deg = round(rng.random_range(20.0..=120.0), 1.0);
+                format!(
+                    "{}° sector at {}° missing over x {from}-{to} m",
+                    p.sector_width_deg, p.sector_centre_deg
+                )
+            }
+            2 => {
+                let r = &mut f.spurious_returns;
+                (r.enabled, r.from_x_m, r.to_x_m) = (true, from, to);
+                r.points_per_scan = rng.random_range(50..=600);
+                format!("{} spurious returns per scan over x {from}-{to} m", r.points_per_scan)
+            }
+            3 => {
+                let w = &mut f.weed_patch;
+                (w.enabled, w.from_x_m, w.length_m) = (true, from, round(rng.random_range(1.0..=3.0), 0.1));
+                w.height_m = round(rng.random_range(0.2..=0.5), 0.01);
+                w.clumps_per_m2 = round(rng.random_range(1.0..=4.0), 0.1);
+                format!("weeds {} m tall over {} m from x {from} m", w.height_m, w.length_m)
+            }
+            4 => {
+                let g = &mut f.row_gap;
+                (g.enabled, g.from_x_m, g.length_m) = (true, from, round(rng.random_range(1.0..=4.0), 0.1));
+                g.rows = match rng.random_range(0..3) {
+                    0 => Vec::new(),
+                    n => (0..n).map(|_| rng.random_range(0..rows)).collect(),
+                };
+                format!("rows {:?} missing over {} m from x {from} m", g.rows, g.length_m)
+            }
+            5 => {
+                let p = &mut f.slip_patch;
+                (p.enabled, p.from_x_m, p.to_x_m) = (true, from, to);
+                p.longitudinal_slip = round(rng.random_range(0.2..=0.4), 0.01);
+                p.lateral_drift_m_s = round(rng.random_range(-0.08..=0.08), 0.01);
+                format!("slip {} drift {} m/s over x {from}-{to} m", p.longitudinal_slip, p.lateral_drift_m_s)
+            }
+            6 => {
+                let g = &mut f.gyro_bias_step;
+                (g.enabled, g.at_x_m) = (true, from);
+                let sign = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+                g.step_rad_s = round(sign * rng.random_range(0.005..=0.03), 0.001);
+                format!("gyro bias step {} rad/s at x {from} m", g.step_rad_s)
+            }
+            7 => {
+                let o = &mut f.odometry_timing;
+                o.enabled = true;
+                o.jitter_s = round(rng.random_range(0.001..=0.01), 0.001);
+                o.out_of_order_probability = round(rng.random_range(0.0..=0.1), 0.01);
+                format!("odometry jitter {} s, {} out of order", o.jitter_s, o.out_of_order_probability)
+            }
+            8 => {
+                let t = &mut f.scan_stamp;
+                (t.enabled, t.from_x_m, t.to_x_m) = (true, from, from + 1.0);
+                let sign = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+                t.offset_s = round(sign * rng.random_range(0.05..=1.0), 0.01);
+                format!("scans stamped {} s off over x {from}-{} m", t.offset_s, from + 1.0)
+            }
+            9 => {
+                let m = &mut f.mount_error;
+                m.enabled = true;
+                m.at_x_m = if rng.random_bool(0.5) { -1000.0 } else { from };
+                m.roll_deg = round(rng.random_range(-3.0..=3.0), 0.1);
+                m.pitch_deg = round(rng.random_range(-3.0..=3.0), 0.1);
+                m.yaw_deg = round(rng.random_range(-3.0..=3.0), 0.1);
+                format!(
+                    "mount off by ({}, {}, {})° from x {} m",
+                    m.roll_deg, m.pitch_deg, m.yaw_deg, m.at_x_m
+                )
+            }
+            _ => {
+                let after = round(rng.random_range(2.0..=f64::from(lanes) * length), 0.01);
+                run.lidar_blackout_after_m = Some(after);
+                format!("LiDAR dead after {after} m driven")
+            }
+        };
+        out.push(text);
+    }
+    out
+}
+
 /// The scenario of [`soak_case`] (the field, robot and start; the lanes and faults are in the case).
 pub fn soak_scenario(seed: u64) -> Scenario {
     soak_case(seed).scenario
@@ -194,9 +312,11 @@ fn stage_name(s: Stage) -> &'static str {
     }
 }
 
-/// `x` rounded to a multiple of `step` (readable scenario files; the value is then exact in TOML).
+/// `x` rounded to a multiple of `step` (0.1, 0.01, ...): the nearest double to that decimal, so that
+/// scenario files and summaries read `3.3`, not `3.3000000000000003`.
 fn round(x: f64, step: f64) -> f64 {
-    (x / step).round() * step
+    let per_unit = (1.0 / step).round();
+    (x * per_unit).round() / per_unit
 }
 
 /// Something the monitor saw, where and when (field frame, true pose).
