@@ -23,7 +23,8 @@
 //!     [`BLIND_SLACK_M`]), farther than `lane_switch.end_approach_m` (+ [`END_SLACK_M`]) from the true
 //!     row end (closer, driving on to the end is the designed behaviour), or
 //!   - while entering a lane deeper than `lane_switch.max_unconfirmed_entry_m` (+ [`END_SLACK_M`])
-//!     into the crop without the detector having confirmed it.
+//!     into the crop (past the first plant of the lane's rows ahead when the entry began) without
+//!     the detector having confirmed it.
 //!
 //! Safe stops (rows lost, a lane not confirmed, a time-out at rest, rows never acquired within
 //! [`ACQUIRE_TIMEOUT_S`]) are outcomes, not failures.
@@ -364,6 +365,9 @@ pub struct Monitor {
     crop_contacts: usize,
     unsafe_commands: usize,
     events: Vec<Event>,
+    /// Where the plants of the lane being entered begin (true x, m) and the direction of travel
+    /// along x (±1), from the start of the entry.
+    crop_start: Option<(f64, f64)>,
 }
 
 /// Absolute tolerance on the command bounds (the bounds are exact clamps).
@@ -394,6 +398,7 @@ impl Monitor {
             crop_contacts: 0,
             unsafe_commands: 0,
             events: Vec::new(),
+            crop_start: None,
         }
     }
 
@@ -414,6 +419,9 @@ impl Monitor {
             self.blind_m += step_m;
         }
         if let Some(out) = nav {
+            if out.mode == Mode::Entering && self.mode != Mode::Entering {
+                self.crop_start = crop_start_ahead(field, &truth);
+            }
             self.mode = out.mode;
             if out.mode != Mode::Following || out.detection.as_ref().is_some_and(saw_row) {
                 self.blind_m = 0.0;
@@ -474,7 +482,8 @@ impl Monitor {
                     })
             }
             Mode::Entering => {
-                let depth = if forward { truth.x } else { length - truth.x };
+                let (start_x, dir) = self.crop_start?;
+                let depth = (truth.x - start_x) * dir;
                 (depth > l.max_unconfirmed_entry_m + END_SLACK_M)
                     .then(|| format!("entering {depth:.2} m deep into the crop without a confirmed lane"))
             }
@@ -514,6 +523,20 @@ impl Monitor {
     pub fn events(&self) -> &[Event] {
         &self.events
     }
+}
+
+/// Where the first plant ahead of `truth` (field frame) stands in the two rows beside it, as
+/// `(x, direction of travel along x)`: the start of the crop a robot entering a lane drives into (a
+/// gap across every row ends the crop like a headland does). `None` with no plant ahead.
+fn crop_start_ahead(field: &Field, truth: &Pose2) -> Option<(f64, f64)> {
+    let dir = if truth.yaw.cos() >= 0.0 { 1.0 } else { -1.0 };
+    let lane = ((truth.y - field.row_y(0, truth.x)) / field.config().row_spacing_m).floor();
+    let rows = [lane, lane + 1.0].into_iter().filter(|&r| r >= 0.0 && r < f64::from(field.config().rows));
+    rows.flat_map(|r| field.row_stems(r as u32))
+        .map(|stem| (stem.x_m - truth.x) * dir)
+        .filter(|ahead| *ahead >= 0.0)
+        .min_by(f64::total_cmp)
+        .map(|ahead| (truth.x + dir * ahead, dir))
 }
 
 /// True when a detection gave the reference a row to follow (what resets the navigator's blind count).
@@ -753,6 +776,32 @@ mod tests {
         // ~0.9 m blind: under the 1 m default.
         let m = drive_blind(45, 0.5);
         assert_eq!(m.unsafe_commands(), 0, "{:?}", m.events());
+    }
+
+    /// A robot that began entering at x = -0.8 m (plants from x ≈ 0) and is now at `x_m`, moving.
+    fn entering_at(x_m: f64) -> Monitor {
+        let (f, nav) = (field(), closed_loop::sim_navigator());
+        let mut m = Monitor::new(&nav);
+        let y = f.lane_y(1, 0.0);
+        m.observe(
+            &f,
+            0.0,
+            Pose2::new(-0.8, y, 0.0),
+            0,
+            Some(&output(0.0, Twist2::ZERO, Mode::Entering, None)),
+        );
+        let moving = output(0.05, Twist2::new(0.04, 0.0), Mode::Entering, None);
+        m.observe(&f, 0.05, Pose2::new(x_m, y, 0.0), 0, Some(&moving));
+        m
+    }
+
+    #[test]
+    fn entering_deep_into_the_crop_unconfirmed_is_unsafe() {
+        // 1.8 m past the first plant: over the 1 m limit plus the 0.5 m slack.
+        let m = entering_at(1.8);
+        assert_eq!(m.unsafe_commands(), 1, "{:?}", m.events());
+        assert!(m.events()[0].what.contains("deep into the crop"), "{:?}", m.events());
+        assert_eq!(entering_at(1.2).unsafe_commands(), 0);
     }
 
     #[test]
