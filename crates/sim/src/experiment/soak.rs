@@ -56,8 +56,8 @@ pub const BLIND_SLACK_M: f64 = 0.15;
 /// Slack on distances to the true row end, m: the detector's row-end estimate and the odometry since
 /// it was made may be off by this much.
 pub const END_SLACK_M: f64 = 0.5;
-/// Events kept per run (the counts go on).
-const MAX_EVENTS: usize = 8;
+/// Events kept per run and kind (contacts, unsafe commands); the counts go on.
+const MAX_EVENTS: usize = 4;
 /// A run whose navigator is still acquiring this long after the standstill ends there, s: a robot
 /// that never starts is safe, and waiting out the time limit would only slow the soak down.
 pub const ACQUIRE_TIMEOUT_S: f64 = 20.0;
@@ -225,7 +225,7 @@ fn draw_faults(rng: &mut ChaCha8Rng, s: &mut Scenario, run: &mut RunConfig, lane
                 let r = &mut f.spurious_returns;
                 (r.enabled, r.from_x_m, r.to_x_m) = (true, from, to);
                 r.points_per_scan = rng.random_range(50..=600);
-                format!("{} spurious returns per scan over x {from}-{to} m", r.points_per_scan)
+                format!("{} spurious returns per scan over x {from}-{to:.1} m", r.points_per_scan)
             }
             3 => {
                 let w = &mut f.weed_patch;
@@ -248,7 +248,10 @@ fn draw_faults(rng: &mut ChaCha8Rng, s: &mut Scenario, run: &mut RunConfig, lane
                 (p.enabled, p.from_x_m, p.to_x_m) = (true, from, to);
                 p.longitudinal_slip = round(rng.random_range(0.2..=0.4), 0.01);
                 p.lateral_drift_m_s = round(rng.random_range(-0.08..=0.08), 0.01);
-                format!("slip {} drift {} m/s over x {from}-{to} m", p.longitudinal_slip, p.lateral_drift_m_s)
+                format!(
+                    "slip {} drift {} m/s over x {from}-{to:.1} m",
+                    p.longitudinal_slip, p.lateral_drift_m_s
+                )
             }
             6 => {
                 let g = &mut f.gyro_bias_step;
@@ -269,7 +272,7 @@ fn draw_faults(rng: &mut ChaCha8Rng, s: &mut Scenario, run: &mut RunConfig, lane
                 (t.enabled, t.from_x_m, t.to_x_m) = (true, from, from + 1.0);
                 let sign = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
                 t.offset_s = round(sign * rng.random_range(0.05..=1.0), 0.01);
-                format!("scans stamped {} s off over x {from}-{} m", t.offset_s, from + 1.0)
+                format!("scans stamped {} s off over x {from}-{:.1} m", t.offset_s, from + 1.0)
             }
             9 => {
                 let m = &mut f.mount_error;
@@ -492,7 +495,9 @@ impl Monitor {
     }
 
     fn record(&mut self, t_s: f64, truth: Pose2, what: String) {
-        if self.events.len() < MAX_EVENTS {
+        let unsafe_kind = what.starts_with("unsafe");
+        let same_kind = self.events.iter().filter(|e| e.what.starts_with("unsafe") == unsafe_kind).count();
+        if same_kind < MAX_EVENTS {
             self.events.push(Event {
                 t_s,
                 distance_m: self.distance_m,
@@ -519,7 +524,7 @@ impl Monitor {
         self.distance_m
     }
 
-    /// The first events (at most eight).
+    /// The first events of each kind (at most four each).
     pub fn events(&self) -> &[Event] {
         &self.events
     }
