@@ -4,7 +4,8 @@
 //!
 //! Run `k` uses seed `S + k`. Writes `DIR/soak.json`:
 //! `{runs, seed, distance_m, sim_time_s, wall_time_s, crop_contacts, unsafe_commands, panics, errors,
-//! ends: {"done": n, "stopped: no_rows": n, ...}, failures: [{seed, scenario, what, replay}]}`, and for
+//! ends: {"done": n, "stopped: no_rows": n, ...}, failures: [{seed, scenario, what, replay}],
+//! each: [{seed, crop, end, distance_m, crop_contacts, unsafe_commands, faults}]}`, and for
 //! every failing seed `DIR/fail-SEED.toml`, its scenario, so that the `replay` command
 //! (`croprow simulate --scenario DIR/fail-SEED.toml --set ... --out DIR/replay-SEED`) drives it again
 //! with plots and a trajectory; `croprow evaluate --suite soak --runs 1 --seed SEED` re-runs it under the
@@ -39,6 +40,21 @@ struct Failure {
     replay: String,
 }
 
+/// One run's result in `soak.json`.
+#[derive(Debug, Clone, Serialize)]
+struct RunLine {
+    seed: u64,
+    /// Crop and stage, e.g. `grown corn`.
+    crop: String,
+    /// How the run ended (`done`, `stopped: no_rows`, `never acquired`, `panic`, `error`, ...).
+    end: String,
+    distance_m: f64,
+    crop_contacts: usize,
+    unsafe_commands: usize,
+    /// Faults injected, `;`-separated (empty for none).
+    faults: String,
+}
+
 /// `soak.json`.
 #[derive(Debug, Serialize)]
 struct Report {
@@ -54,6 +70,8 @@ struct Report {
     /// How the runs ended, counted by label.
     ends: BTreeMap<String, usize>,
     failures: Vec<Failure>,
+    /// Every run, in seed order.
+    each: Vec<RunLine>,
 }
 
 /// What one worker made of one run.
@@ -132,11 +150,25 @@ pub fn run(runs: u32, seed: u64, out: &Path) -> Result<()> {
         errors: 0,
         ends: BTreeMap::new(),
         failures: Vec::new(),
+        each: Vec::with_capacity(seeds.len()),
     };
     for (&s, verdict) in seeds.iter().zip(verdicts) {
         let case = soak_case(s);
+        let summary = &case.scenario.summary;
+        let mut line = RunLine {
+            seed: s,
+            crop: summary.split_whitespace().take(2).collect::<Vec<_>>().join(" "),
+            end: String::new(),
+            distance_m: 0.0,
+            crop_contacts: 0,
+            unsafe_commands: 0,
+            faults: summary.split_once("; faults: ").map_or(String::new(), |(_, f)| f.replace(", ", "; ")),
+        };
         let whats = match verdict {
             Some(Verdict::Ran(o)) => {
+                line.end = o.end.clone();
+                (line.distance_m, line.crop_contacts, line.unsafe_commands) =
+                    (o.distance_m, o.crop_contacts, o.unsafe_commands);
                 report.distance_m += o.distance_m;
                 report.sim_time_s += o.sim_time_s;
                 report.crop_contacts += o.crop_contacts;
@@ -145,15 +177,18 @@ pub fn run(runs: u32, seed: u64, out: &Path) -> Result<()> {
                 o.failures()
             }
             Some(Verdict::Error(e)) => {
+                line.end = "error".into();
                 report.errors += 1;
                 vec![format!("error: {e}")]
             }
             Some(Verdict::Panic(p)) => {
+                line.end = "panic".into();
                 report.panics += 1;
                 vec![format!("panic: {p}")]
             }
             None => bail!("seed {s}: the run did not finish"),
         };
+        report.each.push(line);
         if whats.is_empty() {
             continue;
         }
