@@ -19,6 +19,9 @@ fn small_soak_writes_the_report_and_its_exit_code_tells_failures() {
     for key in ["crop_contacts", "unsafe_commands", "panics", "errors"] {
         assert!(v[key].as_u64().is_some(), "`{key}` missing: {v}");
     }
+    let each = v["each"].as_array().expect("each is a list");
+    assert_eq!(each.len(), 4, "one line per run: {v}");
+    assert!(each.iter().all(|r| r["end"].as_str().is_some_and(|e| !e.is_empty())), "{v}");
     let failures = v["failures"].as_array().expect("failures is a list");
     for f in failures {
         let seed = f["seed"].as_u64().expect("seed");
