@@ -56,8 +56,8 @@ pub struct InputConfig {
     /// off in the future or the past would be placed with the pose of another moment (0.25 s at
     /// 0.5 m/s is 12 cm along the row, and the heading of another time): it is refused, reported as a
     /// detection with status `invalid_input`, and the step goes on without it. Default 0.25 (2.5 scan
-    /// periods: the ROS node pairs a scan with the odometry at its stamp, so only a broken clock gets
-    /// near it).
+    /// periods: the ROS node steps a scan at its own stamp, or at the last step's when odometry ran
+    /// ahead by the cloud's latency; only a broken clock gets near it).
     pub scan_stamp_tolerance_s: f64,
 }
 

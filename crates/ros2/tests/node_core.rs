@@ -208,7 +208,10 @@ fn after_a_stale_hold_the_robot_starts_again_from_rest() {
 
 #[test]
 fn a_blinded_sensor_stops_the_robot_and_the_stop_is_latched_until_resume() {
-    let mut run = Run::new(NodeConfig::default());
+    // Stops for lost rows end by themselves by default (lane_switch.resume_confirmations); latched here.
+    let mut cfg = NodeConfig::default();
+    cfg.lane_switch.resume_confirmations = 0;
+    let mut run = Run::new(cfg);
     run.run(6.0, all);
     // Mud on the lens: the scans keep coming, with no return in them.
     run.blind = true;

@@ -134,7 +134,7 @@ pub struct LaneSwitchConfig {
     pub max_line_jump_m: f64,
     /// Consecutive detections needed to leave a stop whose cause can clear by itself (`rows_lost`,
     /// `no_rows`: a LiDAR dropout, dust, a gap in the rows) and follow again: each must be `tracking`
-    /// and its centre line within `entry_lateral_tolerance_m` and `entry_heading_tolerance_rad` of the
+    /// (or `end_of_row`) and its centre line within `entry_lateral_tolerance_m` and `entry_heading_tolerance_rad` of the
     /// line followed before the stop (the robot stood still: the lane cannot have changed). 0 latches
     /// every stop until [`LaneSwitcher::resume`]. Default 5 (half a second of scans at 10 Hz).
     pub resume_confirmations: u32,
@@ -630,11 +630,12 @@ impl LaneSwitcher {
     }
 
     /// While stopped for a cause that clears by itself: counts consecutive detections of the lane that
-    /// was followed (a steps without a scan keeps the count) and follows again after
-    /// `resume_confirmations` of them. The row end is forgotten: the detector will report it again.
+    /// was followed (a step without a scan keeps the count) and follows again after
+    /// `resume_confirmations` of them. The row end is forgotten: the detector reports it again (a
+    /// stop just before the row end resumes on `end_of_row` detections and goes on to clear it).
     fn recover(&mut self, odom: &Pose2, detection: Option<&Detection>) {
         let Some(d) = detection else { return };
-        let same_lane = d.status == RowStatus::Tracking
+        let same_lane = matches!(d.status, RowStatus::Tracking | RowStatus::EndOfRow)
             && self.reference.centre_line(d).is_some_and(|line| {
                 let seen = odom.compose(&line.pose());
                 self.reference.path().is_none_or(|path| {
@@ -759,8 +760,7 @@ mod tests {
     use super::*;
     use crate::perception::RowEstimate;
 
-    /// Rows at ±0.375 m with heading 0 seen from `odom` shifted `dy` to the left of the lane y = 0:
-    /// the detection a robot at `(x, dy, 0)` makes of the lane y = 0 (plus `offset_m` of error).
+    /// The detection of the lane y = 0 (rows at y = ±0.375 m along x) made by a robot at `(x, dy, 0)`.
     fn rows(t: f64, dy: f64) -> Detection {
         let row = |offset_m: f64| RowEstimate {
             line: [0.0, offset_m, 3.0, offset_m],
