@@ -14,6 +14,8 @@
 //! parallel on all cores. Writes `DIR/table.json`
 //! (`{"fields": {"young-corn": {"detection", "detection_paper_mode", "following", "paper"}, ...}}`) and
 //! `DIR/table.md`.
+//!
+//! `--suite soak --runs N [--seed S]` runs the soak instead (issue 6): see [`super::soak`].
 
 use std::fmt::Write as _;
 use std::fs;
@@ -45,7 +47,7 @@ const PAPER: [(&str, [f64; 4], [f64; 2]); 5] = [
 /// Arguments of `croprow evaluate`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Which suite: `paper` (Table I, simulated columns).
+    /// Which suite: `paper` (Table I, simulated columns) or `soak` (randomised fields, safety monitor).
     #[arg(long, default_value = "paper")]
     pub suite: String,
     /// Output directory (created if needed).
@@ -57,6 +59,12 @@ pub struct Args {
     /// Length of rows driven per run, m (the paper: 200).
     #[arg(long, default_value_t = 30.0)]
     pub length_m: f64,
+    /// Soak: number of runs, with seeds `--seed` + 0..N.
+    #[arg(long, default_value_t = 100)]
+    pub runs: u32,
+    /// Soak: seed of the first run.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
 }
 
 /// Detection errors as in Table I.
@@ -157,8 +165,10 @@ impl Pooled {
 
 /// Runs the subcommand.
 pub fn run(args: Args) -> Result<()> {
-    if args.suite != "paper" {
-        bail!("unknown suite `{}` (known: paper)", args.suite);
+    match args.suite.as_str() {
+        "paper" => {}
+        "soak" => return super::soak::run(args.runs, args.seed, &args.out),
+        other => bail!("unknown suite `{other}` (known: paper, soak)"),
     }
     if args.seeds == 0 || args.seeds > 1000 {
         bail!("--seeds must be in 1..=1000");

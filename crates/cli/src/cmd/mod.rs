@@ -10,3 +10,4 @@ pub mod node;
 pub mod rows;
 pub mod scenarios;
 pub mod simulate;
+pub mod soak;

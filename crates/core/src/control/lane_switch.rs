@@ -15,6 +15,8 @@
 //! Following: rows Lost, or no row for `max_blind_distance_m`, farther than `end_approach_m`
 //!            from a row end the detector has seen ─► Stopped { RowsLost | NoRows }
 //!            ─► `resume_confirmations` consecutive detections of the lane followed before ─► Following
+//! Always:    rows at a spacing over `spacing_tolerance` off `row_spacing_m` are not believed (no row)
+//! Following: a centre line over `max_line_jump_m` from the one followed is not believed (no row)
 //! Entering:  rows disagree with the planned lane ─► Stopped { WrongLane };
 //!            too deep into the field unconfirmed ─► Stopped { ReentryNotConfirmed }
 //! ```
@@ -151,6 +153,16 @@ pub struct LaneSwitchConfig {
     /// beam of the paper's mount (1.5 m high, 30° down, 0.6 m ahead of `base_link`) meets a 0.5 m
     /// canopy, the nearest canopy a scan shows. The default pipeline reports the distance itself.
     pub default_row_end_ahead_m: f64,
+    /// Largest relative difference between the row spacing a detection reports and `row_spacing_m`
+    /// for its rows to be believed. Default 0.25: a detector locked on half or twice the row period
+    /// (the two crests of a closed canopy) is 50 % off or more, while its online estimate stays within
+    /// 10 % on the simulated fields (soak, issue 6). Rows not believed count as no row: the robot does
+    /// not start, stops after `max_blind_distance_m`, or does not confirm a new lane.
+    pub spacing_tolerance: f64,
+    /// Largest lateral jump, at the robot, of the detected centre line from the one being followed,
+    /// m. A larger one (the rows of a neighbouring lane, seen for a scan) is not believed and counts
+    /// as no row. Default 0.25 (a third of a row spacing; scan-to-scan changes are centimetres).
+    pub max_line_jump_m: f64,
     /// Consecutive detections needed to leave a stop whose cause can clear by itself (`rows_lost`,
     /// `no_rows`: a LiDAR dropout, dust, a gap in the rows) and follow again: each must be `tracking`
     /// (or `end_of_row`) and its centre line within `entry_lateral_tolerance_m` and `entry_heading_tolerance_rad` of the
@@ -189,6 +201,8 @@ impl Default for LaneSwitchConfig {
             entry_confirmations: 3,
             max_unconfirmed_entry_m: 1.0,
             default_row_end_ahead_m: 1.6,
+            spacing_tolerance: 0.25,
+            max_line_jump_m: 0.25,
             resume_confirmations: 5,
         }
     }
@@ -225,6 +239,8 @@ impl LaneSwitchConfig {
         check_range("lane_switch.entry_confirmations", self.entry_confirmations as f64, 1.0, 1000.0)?;
         check_range("lane_switch.max_unconfirmed_entry_m", self.max_unconfirmed_entry_m, 0.0, 100.0)?;
         check_range("lane_switch.default_row_end_ahead_m", self.default_row_end_ahead_m, -10.0, 10.0)?;
+        check_range("lane_switch.spacing_tolerance", self.spacing_tolerance, 0.01, 10.0)?;
+        check_range("lane_switch.max_line_jump_m", self.max_line_jump_m, 0.01, 10.0)?;
         check_range("lane_switch.resume_confirmations", f64::from(self.resume_confirmations), 0.0, 1000.0)?;
         let shift = self.shift_m();
         check_range("lane_switch.turn_radius_m", self.turn_radius_m, 0.0, 0.5 * shift)?;
@@ -538,6 +554,10 @@ impl LaneSwitcher {
         }
         // InvalidInput detections carry nothing; they count as no detection.
         let detection = detection.filter(|d| d.status != RowStatus::InvalidInput);
+        // Rows at a spacing this field does not have belong to no lane of it: not believed.
+        let believed = detection
+            .map(|d| if self.spacing_agrees(d) { *d } else { Detection { left: None, right: None, ..*d } });
+        let detection = believed.as_ref();
         match self.mode {
             Mode::Acquiring => {
                 if let Some(d) = detection
@@ -624,6 +644,13 @@ impl LaneSwitcher {
         !self.pivoting && self.turn.segments().len() <= 1
     }
 
+    /// True unless the detection reports a row spacing too far from `row_spacing_m`.
+    fn spacing_agrees(&self, d: &Detection) -> bool {
+        d.row_spacing_m.is_none_or(|s| {
+            (s - self.cfg.row_spacing_m).abs() <= self.cfg.spacing_tolerance * self.cfg.row_spacing_m
+        })
+    }
+
     /// The cruise speed for the MPC in the current mode, braking to a stop where the robot must stand.
     fn speed_mps(&self, odom: &Pose2) -> f64 {
         match self.mode {
@@ -672,7 +699,7 @@ impl LaneSwitcher {
     fn follow(&mut self, odom: &Pose2, detection: Option<&Detection>, travelled: f64) {
         let mut saw_rows = false;
         if let Some(d) = detection {
-            if d.status != RowStatus::Lost {
+            if d.status != RowStatus::Lost && self.continues_line(d, odom) {
                 saw_rows = self.reference.update(d, odom);
             }
             if let Some(ahead) = self.end_ahead(d) {
@@ -704,6 +731,17 @@ impl LaneSwitcher {
         if self.blind_m > self.cfg.max_blind_distance_m {
             self.mode = Mode::Stopped { reason: StopReason::NoRows };
         }
+    }
+
+    /// True when the centre line `d` implies passes within `max_line_jump_m` of the path being
+    /// followed at the robot (or there is nothing to compare). Believing a one-scan jump to a
+    /// neighbouring lane would carry the rest of the mission, row end and turn included, one lane over.
+    fn continues_line(&self, d: &Detection, odom: &Pose2) -> bool {
+        let (Some(path), Some(line)) = (self.reference.path(), self.reference.centre_line(d)) else {
+            return true;
+        };
+        let on_line = odom.compose(&line.pose());
+        path.project(&on_line, self.s_hint_m).lateral_m.abs() <= self.cfg.max_line_jump_m
     }
 
     /// While stopped for a cause that clears by itself: counts consecutive detections of the lane that

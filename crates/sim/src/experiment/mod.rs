@@ -3,5 +3,8 @@
 //!
 //! - [`detection`]: Table I detection: a human-like driver wanders along a lane while the detector
 //!   modes run side by side on the same scans, scored against the truth.
+//! - [`soak`]: many short randomised fields driven end to end, watched for crop contacts and unsafe
+//!   commands (issue 6).
 
 pub mod detection;
+pub mod soak;

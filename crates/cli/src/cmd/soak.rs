@@ -1,0 +1,269 @@
+//! `croprow evaluate --suite soak --runs N [--seed S] --out DIR`: N randomised short fields driven end
+//! to end in parallel on every core (`croprow_sim::experiment::soak`), each run watched for crop
+//! contacts and unsafe commands, each run's panic caught and reported with its seed.
+//!
+//! Run `k` uses seed `S + k`. Writes `DIR/soak.json`:
+//! `{runs, seed, distance_m, sim_time_s, wall_time_s, crop_contacts, unsafe_commands, panics, errors,
+//! ends: {"done": n, "stopped: no_rows": n, ...}, failures: [{seed, scenario, what, replay}],
+//! each: [{seed, crop, end, distance_m, crop_contacts, unsafe_commands, faults}]}`, and for
+//! every failing seed `DIR/fail-SEED.toml`, its scenario, so that the `replay` command
+//! (`croprow simulate --scenario DIR/fail-SEED.toml --set ... --out DIR/replay-SEED`) drives it again
+//! with plots and a trajectory; `croprow evaluate --suite soak --runs 1 --seed SEED` re-runs it under the
+//! monitor. Exits non-zero when any run failed.
+
+use std::any::Any;
+use std::cell::RefCell;
+use std::collections::BTreeMap;
+use std::fs;
+use std::panic::{self, AssertUnwindSafe};
+use std::path::Path;
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use croprow_sim::experiment::soak::{Case, Outcome, run_case, soak_case};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use serde::Serialize;
+
+/// Most runs one command may ask for.
+const MAX_RUNS: u32 = 1_000_000;
+
+/// One failing run in `soak.json`.
+#[derive(Debug, Clone, Serialize)]
+struct Failure {
+    seed: u64,
+    /// The scenario's one-line description.
+    scenario: String,
+    what: String,
+    /// The command that drives this run again.
+    replay: String,
+}
+
+/// One run's result in `soak.json`.
+#[derive(Debug, Clone, Serialize)]
+struct RunLine {
+    seed: u64,
+    /// Crop and stage, e.g. `grown corn`.
+    crop: String,
+    /// How the run ended (`done`, `stopped: no_rows`, `never acquired`, `panic`, `error`, ...).
+    end: String,
+    distance_m: f64,
+    crop_contacts: usize,
+    unsafe_commands: usize,
+    /// Faults injected, `;`-separated (empty for none).
+    faults: String,
+}
+
+/// `soak.json`.
+#[derive(Debug, Serialize)]
+struct Report {
+    runs: u32,
+    seed: u64,
+    distance_m: f64,
+    sim_time_s: f64,
+    wall_time_s: f64,
+    crop_contacts: usize,
+    unsafe_commands: usize,
+    panics: usize,
+    errors: usize,
+    /// How the runs ended, counted by label.
+    ends: BTreeMap<String, usize>,
+    failures: Vec<Failure>,
+    /// Every run, in seed order.
+    each: Vec<RunLine>,
+}
+
+/// What one worker made of one run.
+enum Verdict {
+    Ran(Outcome),
+    Error(String),
+    Panic(String),
+}
+
+thread_local! {
+    /// The last panic's message and location on this thread, set by the soak's panic hook.
+    static LAST_PANIC: RefCell<Option<String>> = const { RefCell::new(None) };
+}
+
+/// Runs the soak suite.
+pub fn run(runs: u32, seed: u64, out: &Path) -> Result<()> {
+    if runs == 0 || runs > MAX_RUNS {
+        bail!("--runs must be in 1..={MAX_RUNS}");
+    }
+    fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let seeds: Vec<u64> = (0..u64::from(runs)).map(|k| seed.wrapping_add(k)).collect();
+    let bar = ProgressBar::with_draw_target(Some(seeds.len() as u64), ProgressDrawTarget::stderr());
+    if let Ok(style) =
+        ProgressStyle::with_template("soak [{elapsed_precise}] {bar:30} {pos}/{len} runs, eta {eta} {msg}")
+    {
+        bar.set_style(style);
+    }
+    // Panics are caught per run: their message goes into the report, not over the progress bar.
+    let default_hook = panic::take_hook();
+    panic::set_hook(Box::new(|info| {
+        LAST_PANIC.with(|p| *p.borrow_mut() = Some(info.to_string()));
+    }));
+    let started = Instant::now();
+    let next = AtomicUsize::new(0);
+    let failed = AtomicUsize::new(0);
+    let verdicts: Mutex<Vec<Option<Verdict>>> = Mutex::new((0..seeds.len()).map(|_| None).collect());
+    let workers = std::thread::available_parallelism().map_or(1, |n| n.get()).min(seeds.len());
+    std::thread::scope(|scope| {
+        for _ in 0..workers {
+            scope.spawn(|| {
+                while let Some(&s) = seeds.get(next.fetch_add(1, Ordering::Relaxed)) {
+                    let verdict = run_one(s);
+                    let bad = match &verdict {
+                        Verdict::Ran(o) => !o.failures().is_empty(),
+                        Verdict::Error(_) | Verdict::Panic(_) => true,
+                    };
+                    if bad {
+                        let n = failed.fetch_add(1, Ordering::Relaxed) + 1;
+                        bar.set_message(format!("{n} failed"));
+                    }
+                    let i = s.wrapping_sub(seed) as usize;
+                    if let Ok(mut v) = verdicts.lock()
+                        && let Some(slot) = v.get_mut(i)
+                    {
+                        *slot = Some(verdict);
+                    }
+                    bar.inc(1);
+                }
+            });
+        }
+    });
+    let wall_time_s = started.elapsed().as_secs_f64();
+    panic::set_hook(default_hook);
+    bar.finish_and_clear();
+    let verdicts = verdicts.into_inner().map_err(|_| anyhow::anyhow!("a soak worker died"))?;
+
+    let mut report = Report {
+        runs,
+        seed,
+        distance_m: 0.0,
+        sim_time_s: 0.0,
+        wall_time_s,
+        crop_contacts: 0,
+        unsafe_commands: 0,
+        panics: 0,
+        errors: 0,
+        ends: BTreeMap::new(),
+        failures: Vec::new(),
+        each: Vec::with_capacity(seeds.len()),
+    };
+    for (&s, verdict) in seeds.iter().zip(verdicts) {
+        let case = soak_case(s);
+        let summary = &case.scenario.summary;
+        let mut line = RunLine {
+            seed: s,
+            crop: summary.split_whitespace().take(2).collect::<Vec<_>>().join(" "),
+            end: String::new(),
+            distance_m: 0.0,
+            crop_contacts: 0,
+            unsafe_commands: 0,
+            faults: summary.split_once("; faults: ").map_or(String::new(), |(_, f)| f.replace(", ", "; ")),
+        };
+        let whats = match verdict {
+            Some(Verdict::Ran(o)) => {
+                line.end = o.end.clone();
+                (line.distance_m, line.crop_contacts, line.unsafe_commands) =
+                    (o.distance_m, o.crop_contacts, o.unsafe_commands);
+                report.distance_m += o.distance_m;
+                report.sim_time_s += o.sim_time_s;
+                report.crop_contacts += o.crop_contacts;
+                report.unsafe_commands += o.unsafe_commands;
+                *report.ends.entry(o.end.clone()).or_default() += 1;
+                o.failures()
+            }
+            Some(Verdict::Error(e)) => {
+                line.end = "error".into();
+                report.errors += 1;
+                vec![format!("error: {e}")]
+            }
+            Some(Verdict::Panic(p)) => {
+                line.end = "panic".into();
+                report.panics += 1;
+                vec![format!("panic: {p}")]
+            }
+            None => bail!("seed {s}: the run did not finish"),
+        };
+        report.each.push(line);
+        if whats.is_empty() {
+            continue;
+        }
+        let replay = write_replay(&case, out)?;
+        for what in whats {
+            report.failures.push(Failure {
+                seed: s,
+                scenario: case.scenario.summary.clone(),
+                what,
+                replay: replay.clone(),
+            });
+        }
+    }
+    let json = serde_json::to_string_pretty(&report)?;
+    fs::write(out.join("soak.json"), json + "\n").context("writing soak.json")?;
+    print_summary(&report, out);
+    if !report.failures.is_empty() {
+        bail!(
+            "soak: {} failure(s) in {} runs (see {})",
+            report.failures.len(),
+            runs,
+            out.join("soak.json").display()
+        );
+    }
+    Ok(())
+}
+
+/// Draws and runs one case; a panic anywhere in it is caught and reported with the seed.
+fn run_one(seed: u64) -> Verdict {
+    LAST_PANIC.with(|p| p.borrow_mut().take());
+    match panic::catch_unwind(AssertUnwindSafe(|| run_case(&soak_case(seed)))) {
+        Ok(Ok(outcome)) => Verdict::Ran(outcome),
+        Ok(Err(e)) => Verdict::Error(e.to_string()),
+        Err(payload) => {
+            let hooked = LAST_PANIC.with(|p| p.borrow_mut().take());
+            Verdict::Panic(hooked.unwrap_or_else(|| payload_text(payload.as_ref())))
+        }
+    }
+}
+
+fn payload_text(payload: &(dyn Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| (*s).to_owned())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "a panic without a message".to_owned())
+}
+
+/// Writes the case's scenario to `DIR/fail-SEED.toml` and returns the command that replays it.
+fn write_replay(case: &Case, out: &Path) -> Result<String> {
+    let path = out.join(format!("fail-{}.toml", case.seed));
+    let text = toml::to_string(&case.scenario).context("serialising the scenario")?;
+    let header = format!("# soak seed {}: {}\n", case.seed, case.scenario.summary);
+    fs::write(&path, header + &text).with_context(|| format!("writing {}", path.display()))?;
+    let sets: String = case.overrides.iter().map(|s| format!(" --set {s}")).collect();
+    Ok(format!(
+        "croprow simulate --scenario {}{sets} --out {}",
+        path.display(),
+        out.join(format!("replay-{}", case.seed)).display()
+    ))
+}
+
+fn print_summary(r: &Report, out: &Path) {
+    println!(
+        "soak: {} runs from seed {}, {:.0} m driven in {:.0} s simulated ({:.0} s wall)",
+        r.runs, r.seed, r.distance_m, r.sim_time_s, r.wall_time_s
+    );
+    println!(
+        "  crop contacts {}, unsafe commands {}, panics {}, errors {}",
+        r.crop_contacts, r.unsafe_commands, r.panics, r.errors
+    );
+    let ends: Vec<String> = r.ends.iter().map(|(k, v)| format!("{k} {v}")).collect();
+    println!("  ends: {}", ends.join(", "));
+    for f in &r.failures {
+        println!("  FAIL seed {}: {}\n    {}\n    replay: {}", f.seed, f.what, f.scenario, f.replay);
+    }
+    println!("  wrote {}", out.join("soak.json").display());
+}
