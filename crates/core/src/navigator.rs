@@ -298,14 +298,16 @@ impl Navigator {
             } else {
                 let dv = self.cfg.mpc.accel_max_mps2 * elapsed_s;
                 let dw = self.cfg.mpc.yaw_accel_max_radps2 * elapsed_s;
-                let mut omega = sol.cmd.omega.clamp(self.last_cmd.omega - dw, self.last_cmd.omega + dw);
+                let mut omega = sol.cmd.omega;
                 if guidance.mode == Mode::Turning && guidance.speed_mps == 0.0 {
                     // Turning on the spot: the MPC's rate penalty is soft and the wheels lag, so it
                     // brakes the spin too late and overshoots the next leg's heading. Cap the yaw rate
-                    // to what stops, at half the yaw acceleration limit, where the heading is reached.
+                    // to what stops, at half the yaw acceleration limit, where the heading is reached
+                    // (the rate limit below still wins).
                     let brake = (self.cfg.mpc.yaw_accel_max_radps2 * frenet.heading_rad.abs()).sqrt();
                     omega = omega.clamp(-brake, brake);
                 }
+                let omega = omega.clamp(self.last_cmd.omega - dw, self.last_cmd.omega + dw);
                 out.cmd = Twist2::new(sol.cmd.v.clamp(self.last_cmd.v - dv, self.last_cmd.v + dv), omega);
             }
         } else {

@@ -6,8 +6,9 @@ use croprow_sim::FaultConfig;
 use croprow_sim::experiment::soak::{Outcome, run_case, soak_case};
 
 /// Runs the soak case of `seed` (whose summary starts with `summary`) without faults, once with the
-/// lane switcher's guards off (it must fail as it did) and once as configured (it must be safe).
-fn safe_run(seed: u64, summary: &str) -> Outcome {
+/// lane switcher's guards off (when `provokes`, it must fail as it did) and once as configured (it
+/// must be safe).
+fn safe_run(seed: u64, summary: &str, provokes: bool) -> Outcome {
     let mut case = soak_case(seed);
     assert!(case.scenario.summary.starts_with(summary), "{}", case.scenario.summary);
     case.scenario.faults = FaultConfig::default();
@@ -16,7 +17,7 @@ fn safe_run(seed: u64, summary: &str) -> Outcome {
     unguarded.navigator.lane_switch.spacing_tolerance = 10.0;
     unguarded.navigator.lane_switch.max_line_jump_m = 10.0;
     let before = run_case(&unguarded).expect("runs");
-    assert!(before.crop_contacts > 0, "the case no longer provokes the failure: {before:?}");
+    assert!(!provokes || before.crop_contacts > 0, "the case no longer provokes the failure: {before:?}");
     let outcome = run_case(&case).expect("runs");
     assert_eq!((outcome.crop_contacts, outcome.unsafe_commands), (0, 0), "{outcome:?}");
     outcome
@@ -26,13 +27,16 @@ fn safe_run(seed: u64, summary: &str) -> Outcome {
 fn half_period_lock_at_the_start_never_drives_into_the_rows() {
     // Grown corn 0.70 m apart: the detector locked on half the row period (rows ~0.35 m apart) from
     // the first scans, steered the robot 0.17 m sideways and ran over 9 plants in the first metre.
-    safe_run(8, "grown corn 13.2 m");
+    safe_run(8, "grown corn 13.2 m", true);
 }
 
 #[test]
 fn half_period_lock_after_a_turn_is_not_entered() {
     // Grown soybean: after the second headland turn the detector re-acquired on half the period while
     // still turning, the lane was confirmed on those rows and the robot drifted onto a row (8 plants).
-    let outcome = safe_run(2, "grown soybean 11.7 m");
+    // Since headland turns pivot in place the unguarded run no longer meets those rows (0 contacts), so
+    // this seed now only checks the guarded run; `rows_at_half_the_row_spacing_are_never_followed` in
+    // the core keeps guarding the spacing check itself.
+    let outcome = safe_run(2, "grown soybean 11.7 m", false);
     assert!(outcome.lanes_completed >= 2, "the first two lanes are still driven: {outcome:?}");
 }

@@ -62,6 +62,10 @@ use crate::error::{ConfigError, check_range};
 use crate::geometry::{Pose2, wrap_angle};
 use crate::perception::{Detection, RowStatus};
 
+/// How far ahead of the robot a new centre line is checked against the one followed, m (see
+/// `LaneSwitchConfig::max_line_jump_m`): about where the MPC's 2 s horizon at cruise speed ends.
+const LINE_CHECK_AHEAD_M: f64 = 1.5;
+
 /// Which way the robot turns at a row end.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -159,8 +163,8 @@ pub struct LaneSwitchConfig {
     /// 10 % on the simulated fields (soak, issue 6). Rows not believed count as no row: the robot does
     /// not start, stops after `max_blind_distance_m`, or does not confirm a new lane.
     pub spacing_tolerance: f64,
-    /// Largest lateral jump, at the robot, of the detected centre line from the one being followed,
-    /// m. A larger one (the rows of a neighbouring lane, seen for a scan) is not believed and counts
+    /// Largest lateral jump, at the robot and 1.5 m ahead of it, of the detected centre line from
+    /// the one being followed, m. A larger one (the rows of a neighbouring lane, seen for a scan) is not believed and counts
     /// as no row. Default 0.25 (a third of a row spacing; scan-to-scan changes are centimetres).
     pub max_line_jump_m: f64,
     /// Consecutive detections needed to leave a stop whose cause can clear by itself (`rows_lost`,
@@ -740,8 +744,12 @@ impl LaneSwitcher {
         let (Some(path), Some(line)) = (self.reference.path(), self.reference.centre_line(d)) else {
             return true;
         };
-        let on_line = odom.compose(&line.pose());
-        path.project(&on_line, self.s_hint_m).lateral_m.abs() <= self.cfg.max_line_jump_m
+        // At the robot and a little ahead: a line that pivots about the robot (few rows left in view
+        // at a row end, after a LiDAR dropout) jumps ahead, where the robot is about to drive.
+        [0.0, LINE_CHECK_AHEAD_M].iter().all(|&ahead| {
+            let on_line = odom.compose(&line.pose().compose(&Pose2::new(ahead, 0.0, 0.0)));
+            path.project(&on_line, self.s_hint_m).lateral_m.abs() <= self.cfg.max_line_jump_m
+        })
     }
 
     /// While stopped for a cause that clears by itself: counts consecutive detections of the lane that
@@ -952,6 +960,30 @@ mod tests {
         let g = sw.update(&at, Some(&rows(0.6, 0.0)));
         assert_eq!(g.mode, Mode::Following);
         assert!(g.speed_mps > 0.0);
+    }
+
+    #[test]
+    fn a_centre_line_pivoting_about_the_robot_is_not_followed() {
+        // Regression: after a LiDAR dropout near a row end the detector fitted the few rows left in
+        // view 0.29 rad off, 0.2 m to the side at the robot (under the 0.25 m jump limit); the robot
+        // steered onto a row. The jump is checked 1.5 m ahead too, so such a line counts as no row.
+        let pivoted = |t: f64| {
+            let mut d = rows(t, 0.0);
+            for r in [d.left.as_mut(), d.right.as_mut()].into_iter().flatten() {
+                r.offset_m += 0.2;
+                r.heading_rad = 0.29;
+                r.line = [0.0, r.offset_m, 1.9, r.offset_m + 1.9 * 0.29_f64.tan()];
+            }
+            d
+        };
+        let mut sw = LaneSwitcher::new(LaneSwitchConfig::default(), ReferenceConfig::default()).unwrap();
+        sw.update(&Pose2::new(1.0, 0.0, 0.0), Some(&rows(0.0, 0.0)));
+        let mut mode = sw.mode();
+        for k in 1..=12 {
+            let at = Pose2::new(1.0 + 0.1 * k as f64, 0.0, 0.0);
+            mode = sw.update(&at, Some(&pivoted(0.1 * k as f64))).mode;
+        }
+        assert_eq!(mode, Mode::Stopped { reason: StopReason::NoRows });
     }
 
     #[test]
