@@ -215,7 +215,7 @@ pub struct Run {
     /// One sample per control step.
     pub samples: Vec<Sample>,
     /// Detected rows `[x1, y1, x2, y2]` (from `base_link`) placed in the field frame with the true
-    /// pose at their scan, m: they show the detector's error, not the odometry's drift.
+    /// pose at their scan, m, while following: they show the detector's error, not the odometry's drift.
     pub detected_rows: Vec<[f64; 4]>,
     /// True row centre polylines `[x, y]` in the field frame, every 0.5 m, m.
     pub true_rows: Vec<Vec<[f64; 2]>>,
@@ -592,7 +592,10 @@ impl ClosedLoop {
         }
         if let Some(d) = &out.detection {
             self.scans += 1;
-            for row in [d.left, d.right].into_iter().flatten() {
+            // Only the rows the navigator follows by: while it turns or enters a lane the detector's
+            // lines are not used, and drawn they would hide the headland.
+            let rows = if out.mode == Mode::Following { [d.left, d.right] } else { [None, None] };
+            for row in rows.into_iter().flatten() {
                 let [x1, y1, x2, y2] = row.line;
                 let (a, b) = truth.transform_point(x1, y1);
                 let (c, e) = truth.transform_point(x2, y2);
