@@ -20,13 +20,9 @@ use std::hash::{DefaultHasher, Hasher};
 use croprow_core::Pose2;
 use croprow_sim::{BodyPose, Field, Lidar, ScanBuffer, Scenario};
 
-/// CPU time of this thread, ns (scheduler accounting: exact over many revolutions, coarse for one).
-fn cpu_ns() -> u64 {
-    std::fs::read_to_string("/proc/thread-self/schedstat")
-        .ok()
-        .and_then(|s| s.split_whitespace().next().and_then(|v| v.parse().ok()))
-        .unwrap_or(0)
-}
+#[path = "common/cpu.rs"]
+mod cpu;
+use cpu::cpu_ns;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();

@@ -10,7 +10,7 @@
 mod fuzzer;
 
 use croprow_sim::{Scenario, World};
-use fuzzer::{Campaign, Outcome, Verdict};
+use fuzzer::{Campaign, Outcome, Verdict, toml_dictionary};
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
 
@@ -23,39 +23,9 @@ const WORLD_EVERY: usize = 64;
 /// Largest field (plants) whose world is built.
 const MAX_WORLD_PLANTS: f64 = 5_000.0;
 
-/// TOML tokens and values that break parsers and range checks.
-const DICTIONARY: [&[u8]; 30] = [
-    b"nan",
-    b"+nan",
-    b"-nan",
-    b"inf",
-    b"-inf",
-    b"1e309",
-    b"-0.0",
-    b"0",
-    b"-1",
-    b"1e-320",
-    b"9223372036854775807",
-    b"-9223372036854775808",
-    b"9223372036854775808",
-    b"4294967296",
-    b"true",
-    b"\"\"",
-    b"\"x\"",
-    b"[]",
-    b"{}",
-    b"=",
-    b"\n",
-    b"[field]\n",
-    b"[lidar.mount]\n",
-    b"[start]\nlane = ",
-    b"[robot]\n",
-    b"[[field]]\n",
-    b"'''",
-    b"1979-05-27T07:32:00Z",
-    b"0x7fffffff",
-    b"1_000",
-];
+/// Scenario sections, added to the shared TOML tokens.
+const SECTIONS: [&[u8]; 5] =
+    [b"[field]\n", b"[lidar.mount]\n", b"[start]\nlane = ", b"[robot]\n", b"[[field]]\n"];
 
 fn seeds() -> Vec<Vec<u8>> {
     Scenario::names()
@@ -102,7 +72,7 @@ fn consistent(s: &Scenario, build_world: bool) -> Outcome {
 #[test]
 fn fuzz_scenario_toml() {
     let mut accepted = 0usize;
-    Campaign::new("scenario_toml", seeds(), EXECS).dictionary(&DICTIONARY).run(|bytes| {
+    Campaign::new("scenario_toml", seeds(), EXECS).dictionary(&toml_dictionary(&SECTIONS)).run(|bytes| {
         let Ok(text) = std::str::from_utf8(bytes) else { return Ok(Verdict::Rejected) };
         match Scenario::from_toml_str(text) {
             Ok(s) => {

@@ -153,6 +153,41 @@ pub fn run_generated(
     report.conclude()
 }
 
+/// TOML values and syntax that break parsers and range checks, for every config fuzzer (each adds
+/// its own section headers).
+pub const TOML_TOKENS: [&[u8]; 25] = [
+    b"nan",
+    b"+nan",
+    b"-nan",
+    b"inf",
+    b"-inf",
+    b"1e309",
+    b"-0.0",
+    b"0",
+    b"-1",
+    b"1e-320",
+    b"9223372036854775807",
+    b"-9223372036854775808",
+    b"9223372036854775808",
+    b"4294967296",
+    b"true",
+    b"\"\"",
+    b"\"x\"",
+    b"[]",
+    b"{}",
+    b"=",
+    b"\n",
+    b"'''",
+    b"1979-05-27T07:32:00Z",
+    b"0x7fffffff",
+    b"1_000",
+];
+
+/// [`TOML_TOKENS`] followed by `extra` (a config's own section headers and values).
+pub fn toml_dictionary<'a>(extra: &[&'a [u8]]) -> Vec<&'a [u8]> {
+    TOML_TOKENS.iter().copied().chain(extra.iter().copied()).collect()
+}
+
 /// Executions per campaign: `CROPROW_FUZZ_EXECS` or the test's default.
 pub fn execs_or(default: usize) -> usize {
     std::env::var("CROPROW_FUZZ_EXECS").ok().and_then(|v| v.trim().parse().ok()).unwrap_or(default)
