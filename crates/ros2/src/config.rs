@@ -19,6 +19,7 @@ use croprow_core::control::reference::ReferenceConfig;
 use croprow_core::error::{ConfigError, check_range};
 use croprow_core::odometry::EkfConfig;
 use croprow_core::{DetectorConfig, Mount, NavigatorConfig};
+use croprow_io::overrides;
 use serde::{Deserialize, Serialize};
 
 /// Where the `odom -> base_link` pose comes from.
@@ -196,44 +197,16 @@ impl NodeConfig {
     /// Sets one leaf from text, parsed as the leaf's type (`--set mpc.horizon_steps=30`); the result
     /// is validated and `self` is unchanged on error.
     pub fn set(&mut self, key: &str, text: &str) -> Result<(), ConfigError> {
-        let current = self.leaf(key)?;
-        let bad = |what: &str| ConfigError::invalid(key, format!("`{text}` is not {what}"));
-        let value = match current {
-            toml::Value::Integer(_) => {
-                toml::Value::Integer(text.trim().parse().map_err(|_| bad("an integer"))?)
-            }
-            toml::Value::Float(_) => toml::Value::Float(text.trim().parse().map_err(|_| bad("a number"))?),
-            toml::Value::Boolean(_) => {
-                toml::Value::Boolean(text.trim().parse().map_err(|_| bad("true or false"))?)
-            }
-            toml::Value::String(_) => toml::Value::String(text.to_owned()),
-            _ => return Err(ConfigError::invalid(key, "is a section, not a value")),
-        };
+        let value = overrides::parse_as(&self.leaf(key)?, key, text)?;
         self.set_value(key, value)
     }
 
     /// Sets one leaf to a typed value (an integer is accepted for a float leaf); validated, and
     /// `self` is unchanged on error.
     pub fn set_value(&mut self, key: &str, value: toml::Value) -> Result<(), ConfigError> {
-        let current = self.leaf(key)?;
-        let value = match (&current, value) {
-            (toml::Value::Float(_), toml::Value::Integer(i)) => toml::Value::Float(i as f64),
-            (c, v) if c.type_str() == v.type_str() => v,
-            (c, v) => {
-                return Err(ConfigError::invalid(
-                    key,
-                    format!("expects a {}, got a {}", c.type_str(), v.type_str()),
-                ));
-            }
-        };
-        let mut tree = toml::Value::try_from(&*self).map_err(|e| ConfigError::invalid(key, e.to_string()))?;
-        let mut node = &mut tree;
-        for part in key.split('.') {
-            node = node.get_mut(part).ok_or_else(|| unknown(key))?;
-        }
-        *node = value;
-        let cfg: NodeConfig =
-            tree.try_into().map_err(|e: toml::de::Error| ConfigError::invalid(key, e.message()))?;
+        // Only existing leaves: a node parameter can never create a section.
+        self.leaf(key)?;
+        let cfg = overrides::set(self, key, value)?;
         cfg.validate()?;
         *self = cfg;
         Ok(())
@@ -241,20 +214,8 @@ impl NodeConfig {
 
     /// The current value of a leaf.
     pub fn leaf(&self, key: &str) -> Result<toml::Value, ConfigError> {
-        let tree = toml::Value::try_from(self).map_err(|e| ConfigError::invalid(key, e.to_string()))?;
-        let mut node = &tree;
-        for part in key.split('.') {
-            node = node.get(part).ok_or_else(|| unknown(key))?;
-        }
-        if node.is_table() {
-            return Err(ConfigError::invalid(key, "is a section, not a value"));
-        }
-        Ok(node.clone())
+        overrides::leaf(self, key)
     }
-}
-
-fn unknown(key: &str) -> ConfigError {
-    ConfigError::invalid(key, "no such setting")
 }
 
 fn flatten(prefix: &str, table: &toml::Table, out: &mut Vec<(String, toml::Value)>) {

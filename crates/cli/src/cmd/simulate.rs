@@ -21,11 +21,10 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use croprow_core::navigator::NavigatorConfig;
 use croprow_core::{Detection, Pose2};
-use croprow_io::RecordingWriter;
+use croprow_io::{RecordingWriter, overrides};
 use croprow_sim::closed_loop::{ClosedLoop, Run, RunConfig, Sample, Tick};
 use croprow_sim::{Metrics, Scenario};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use serde::Serialize;
 
 use crate::plot;
 
@@ -99,42 +98,17 @@ impl Setup {
     /// Applies one `key=value` override.
     fn apply(&mut self, item: &str) -> Result<()> {
         let (key, raw) = item.split_once('=').context("expected KEY=VALUE")?;
-        let path: Vec<&str> = key.trim().split('.').collect();
-        let value = parse_value(raw.trim());
-        match path.as_slice() {
-            ["run", rest @ ..] => self.run = set_in(&self.run, rest, value)?,
-            [section, ..] if NAV_SECTIONS.contains(section) => {
-                self.navigator = set_in(&self.navigator, &path, value)?;
+        let key = key.trim();
+        let value = overrides::parse_literal(raw.trim());
+        match key.split_once('.') {
+            Some(("run", rest)) => self.run = overrides::set(&self.run, rest, value)?,
+            Some((section, _)) if NAV_SECTIONS.contains(&section) => {
+                self.navigator = overrides::set(&self.navigator, key, value)?;
             }
-            _ => self.scenario = set_in(&self.scenario, &path, value)?,
+            _ => self.scenario = overrides::set(&self.scenario, key, value)?,
         }
         Ok(())
     }
-}
-
-/// A TOML value as written after `=`; bare words are strings (`detector.mode=paper`).
-fn parse_value(raw: &str) -> toml::Value {
-    toml::from_str::<toml::Table>(&format!("v = {raw}"))
-        .ok()
-        .and_then(|mut t| t.remove("v"))
-        .unwrap_or_else(|| toml::Value::String(raw.to_owned()))
-}
-
-/// Returns `config` with the field at `path` set to `value` (through TOML, so that every key the
-/// config file accepts can be set and unknown keys are refused by name).
-fn set_in<T>(config: &T, path: &[&str], value: toml::Value) -> Result<T>
-where
-    T: Serialize + serde::de::DeserializeOwned,
-{
-    let mut root = toml::Value::try_from(config)?;
-    let (last, parents) = path.split_last().context("empty key")?;
-    let mut node = &mut root;
-    for part in parents {
-        let table = node.as_table_mut().context("not a section")?;
-        node = table.entry(part.to_string()).or_insert_with(|| toml::Value::Table(toml::Table::new()));
-    }
-    node.as_table_mut().context("not a section")?.insert(last.to_string(), value);
-    root.try_into().map_err(|e: toml::de::Error| anyhow::anyhow!("{}", e.message()))
 }
 
 /// Runs the subcommand.
