@@ -183,7 +183,8 @@ impl RowEnds {
             if !along.is_finite() || !(row - q).abs().le(&ROW_GATE) {
                 continue;
             }
-            let Some(slot) = usize::try_from(q as i64 - i64::from(Q_MIN)).ok().and_then(|i| self.ends.get_mut(i))
+            let Some(slot) =
+                usize::try_from(q as i64 - i64::from(Q_MIN)).ok().and_then(|i| self.ends.get_mut(i))
             else {
                 continue;
             };
@@ -238,7 +239,8 @@ impl RowEnds {
 mod tests {
     use super::*;
 
-    const TYRES: Footprint = Footprint { wheel_x_m: 0.6095, wheel_y_m: 0.762, tire_length_m: 0.12, tire_width_m: 0.15 };
+    const TYRES: Footprint =
+        Footprint { wheel_x_m: 0.6095, wheel_y_m: 0.762, tire_length_m: 0.12, tire_width_m: 0.15 };
     const NONE: Clearance = Clearance { margin_m: 0.0, allowance_m: 0.0, drift_fraction: 0.0, view_m: 0.0 };
 
     /// Distance from a pivot at `(px, py)` to the row `y = row_y`, `x <= end_x` (a ray), m.

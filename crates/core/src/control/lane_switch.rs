@@ -66,6 +66,9 @@ use crate::perception::{Detection, RowStatus};
 /// How far ahead of the robot a new centre line is checked against the one followed, m (see
 /// `LaneSwitchConfig::max_line_jump_m`): about where the MPC's 2 s horizon at cruise speed ends.
 const LINE_CHECK_AHEAD_M: f64 = 1.5;
+/// Length of the detector's map bins, m: a centroid up to one bin past the reported canopy end still
+/// belongs to the last plants.
+const ROW_END_BIN_M: f64 = 0.25;
 /// Weight of each scan's row spacing in the running mean the turns use: about the last 20 scans
 /// (2 m at cruise speed).
 const SPACING_GAIN: f64 = 0.05;
@@ -600,17 +603,25 @@ impl LaneSwitcher {
     }
 
     /// Feeds the row centroids the detector mapped at this scan (`base_link` at `odom`, m; e.g.
-    /// [`crate::perception::RowDetector::centroids`]). While a lane is followed, the farthest one of
-    /// each row tells where that row ends, and the headland turn is planned against those ends (see
-    /// [`crate::control::headland`]); without them every row is taken to end at the lane's row end.
-    pub fn observe_canopy(&mut self, odom: &Pose2, centroids: &[[f64; 2]]) {
+    /// [`crate::perception::RowDetector::centroids`]) with the scan's detection. While a lane is
+    /// followed, the farthest one of each row tells where that row ends, and the headland turn is
+    /// planned against those ends (see [`crate::control::headland`]); without them every row is taken
+    /// to end at the lane's row end. Only scans that see the canopy end count (the last plants are
+    /// in view from about 3 m before it), and only centroids up to one `ROW_END_BIN_M` past that end:
+    /// beyond it they are not plants of the lane's rows (ground seen through a mis-pitched sensor,
+    /// clutter in the headland).
+    pub fn observe_canopy(&mut self, odom: &Pose2, detection: &Detection, centroids: &[[f64; 2]]) {
         if self.mode != Mode::Following || !odom.is_finite() {
             return;
         }
+        let Some(reach) = detection.row_end_ahead_m.filter(|a| a.is_finite()).map(|a| a + ROW_END_BIN_M)
+        else {
+            return;
+        };
         let spacing = self.spacing_m();
         let hint = self.s_hint_m;
         let Some(path) = self.reference.path() else { return };
-        let points = centroids.iter().map(|c| odom.transform_point(c[0], c[1]));
+        let points = centroids.iter().filter(|c| c[0] <= reach).map(|c| odom.transform_point(c[0], c[1]));
         self.row_ends.observe(spacing, points, |x, y| {
             let f = path.project(&Pose2::new(x, y, 0.0), hint);
             (f.s_m, f.lateral_m)
@@ -733,7 +744,11 @@ impl LaneSwitcher {
 
     /// Which way the next turn goes: +1 left, −1 right (turns alternate from `first_turn`).
     fn next_side(&self) -> f64 {
-        if self.turn_index.is_multiple_of(2) { self.cfg.first_turn.sign() } else { -self.cfg.first_turn.sign() }
+        if self.turn_index.is_multiple_of(2) {
+            self.cfg.first_turn.sign()
+        } else {
+            -self.cfg.first_turn.sign()
+        }
     }
 
     /// Where past the row end the robot stops to turn (or to end the mission), m.
@@ -754,8 +769,14 @@ impl LaneSwitcher {
         let spacing = self.spacing_m();
         let nominal = self.cfg.turn_start_m();
         let ends = &self.row_ends;
-        let plan = self.cfg.pivot_plan(spacing, self.next_side(), |q| ends.end_or_fit_m(q, &end, spacing));
-        self.pivots = Some(PivotPlan { first_m: plan.first_m.max(nominal), second_m: plan.second_m.max(nominal) });
+        // Centroids stored before the end came into view may lie in the headland: no row is believed to
+        // run on more than `row_end_window_m` past the lane's end.
+        let window = self.cfg.row_end_window_m;
+        let plan = self
+            .cfg
+            .pivot_plan(spacing, self.next_side(), |q| ends.end_or_fit_m(q, &end, spacing).min(window));
+        self.pivots =
+            Some(PivotPlan { first_m: plan.first_m.max(nominal), second_m: plan.second_m.max(nominal) });
     }
 
     /// The highest speed from which the robot stops within `remaining_m` at `stop_decel_mps2`, m/s.
@@ -799,10 +820,9 @@ impl LaneSwitcher {
         match self.mode {
             Mode::Following => self.cfg.cruise_speed_mps,
             Mode::ClearingRowEnd => match self.row_end {
-                Some(end) if self.stops_at_turn_start() => self
-                    .cfg
-                    .turn_speed_mps
-                    .min(self.braking_speed(self.exit_start_m() - along(&end, odom))),
+                Some(end) if self.stops_at_turn_start() => {
+                    self.cfg.turn_speed_mps.min(self.braking_speed(self.exit_start_m() - along(&end, odom)))
+                }
                 _ => self.cfg.turn_speed_mps,
             },
             Mode::Turning if self.pivoting => 0.0,
@@ -960,8 +980,12 @@ impl LaneSwitcher {
         let shift = 2.0 * spacing * f64::from(self.cfg.lane_step);
         // The new lane's rows: where its front tyres must stop until the lane is seen.
         let q = (side * 2.0 * f64::from(self.cfg.lane_step)) as i32;
-        self.entry_row_end_m = self.row_ends.end_or_fit_m(q - 1, end, spacing)
-            .max(self.row_ends.end_or_fit_m(q, end, spacing))
+        let window = self.cfg.row_end_window_m;
+        self.entry_row_end_m = self
+            .row_ends
+            .end_or_fit_m(q - 1, end, spacing)
+            .min(window)
+            .max(self.row_ends.end_or_fit_m(q, end, spacing).min(window))
             + self.cfg.row_end_allowance_m;
         self.entry_anchored = false;
         let d = along(end, odom);
@@ -1242,7 +1266,11 @@ mod tests {
         let ended = |t: f64, ahead: f64| Detection { row_end_ahead_m: Some(ahead), ..rows(t, 0.0) };
         sw.update(&Pose2::new(1.0, 0.0, 0.0), Some(&rows(0.0, 0.0)));
         sw.update(&Pose2::new(1.0, 0.0, 0.0), Some(&ended(0.1, 2.0)));
-        sw.observe_canopy(&Pose2::new(1.0, 0.0, 0.0), &[[1.9, 0.37], [2.3, 0.38], [1.95, -0.37]]);
+        sw.observe_canopy(
+            &Pose2::new(1.0, 0.0, 0.0),
+            &ended(0.1, 2.0),
+            &[[1.9, 0.37], [2.3, 0.38], [1.95, -0.37]],
+        );
         let mut x = 1.0;
         while sw.mode() != Mode::Turning && x < 6.0 {
             x += 0.01;
@@ -1261,7 +1289,11 @@ mod tests {
         let ended = |t: f64, ahead: f64| Detection { row_end_ahead_m: Some(ahead), ..rows(t, 0.0) };
         sw.update(&Pose2::new(1.0, 0.0, 0.0), Some(&rows(0.0, 0.0)));
         sw.update(&Pose2::new(1.0, 0.0, 0.0), Some(&ended(0.1, 2.0)));
-        sw.observe_canopy(&Pose2::new(1.0, 0.0, 0.0), &[[1.9, 0.37], [2.3, 0.38], [1.95, -0.37]]);
+        sw.observe_canopy(
+            &Pose2::new(1.0, 0.0, 0.0),
+            &ended(0.1, 2.0),
+            &[[1.9, 0.37], [2.3, 0.38], [1.95, -0.37]],
+        );
         sw.update(&Pose2::new(3.05, 0.0, 0.0), None);
         sw.update(&Pose2::new(3.1, 0.0, 0.0), None);
         assert_eq!(sw.mode(), Mode::Stopped { reason: StopReason::NoRoomToTurn });
