@@ -123,7 +123,8 @@ pub struct LaneSwitchConfig {
     /// of `row_end_allowance_m` and the odometry drift (`odometry_drift_fraction`). Default 0.05.
     pub clearance_margin_m: f64,
     /// Distance a row's last stem may stand past the farthest row centroid the detector mapped on it,
-    /// m: a centroid is the mean of a 0.25 m map bin, the last plants' canopy centre. Default 0.1.
+    /// m: a centroid is the mean of a 0.25 m map bin, the last plants' canopy centre, so with two
+    /// plants in the last bin (0.15-0.2 m apart) the last stem is half that past it. Default 0.05.
     pub row_end_allowance_m: f64,
     /// Odometry error per metre driven since the row ends were last seen, along and across the rows:
     /// wheel slip makes the wheels over-report the distance (the simulated soil slips 3 % ± 1 %, and
@@ -206,7 +207,7 @@ impl Default for LaneSwitchConfig {
             entry_speed_mps: 0.2,
             turn_radius_m: 0.0,
             clearance_margin_m: 0.05,
-            row_end_allowance_m: 0.1,
+            row_end_allowance_m: 0.05,
             odometry_drift_fraction: 0.05,
             wheel_x_m: 0.6095,
             wheel_y_m: 0.762,
@@ -1218,12 +1219,12 @@ mod tests {
         cfg.validate().unwrap();
         assert!(cfg.pivots());
         // The second pivot binds: 0.075 m lateral drift over the 1.5 m shift leaves the nearest row
-        // 0.3 m to the side, √(ρ² − 0.3²) = 1.0289 with ρ = 1.0717; plus 0.1 allowance, 0.05 margin
-        // and 0.05·(1.6 + ρ + 1.5) drift = 1.3876 m.
+        // 0.3 m to the side, √(ρ² − 0.3²) = 1.0289 with ρ = 1.0717; plus 0.05 allowance, 0.05 margin
+        // and 0.05·(1.6 + ρ + 1.5) drift = 1.3376 m.
         let reach = 0.6695f64.hypot(0.837);
-        let expected = (reach * reach - 0.09).sqrt() + 0.1 + 0.05 + 0.05 * (1.6 + reach + 1.5);
+        let expected = (reach * reach - 0.09).sqrt() + 0.05 + 0.05 + 0.05 * (1.6 + reach + 1.5);
         assert!((cfg.turn_excursion_m() - expected).abs() < 1e-9, "{}", cfg.turn_excursion_m());
-        assert!((expected - 1.3876).abs() < 1e-4, "{expected}");
+        assert!((expected - 1.3376).abs() < 1e-4, "{expected}");
         // Two lanes over (3 m), still inside the 1.5 m headland.
         let skip = LaneSwitchConfig { lane_step: 2, ..LaneSwitchConfig::default() };
         skip.validate().unwrap();
@@ -1251,52 +1252,55 @@ mod tests {
         let r06 = LaneSwitchConfig { turn_radius_m: 0.6, ..LaneSwitchConfig::default() };
         let reach = 0.6695f64.hypot(0.237);
         let swing = (reach.powi(2) - 0.225f64.powi(2)).sqrt();
-        let budget = 0.05 + 0.1 + 0.05 * (1.6 + reach);
+        let budget = 0.05 + 0.05 + 0.05 * (1.6 + reach);
         assert!((r06.turn_start_m() - (swing + budget)).abs() < 1e-9, "{}", r06.turn_start_m());
         assert!((r06.turn_excursion_m() - (swing + budget + 0.6)).abs() < 1e-9);
     }
 
-    #[test]
-    fn a_measured_row_end_past_the_lane_end_moves_the_first_pivot_out() {
-        // Following y = 0 to the row end at x = 3 (the detection's canopy end), with the left row's
-        // last centroid 0.3 m farther (a ragged end): the robot pivots 0.3 m farther out, past the
-        // paper's 1.5 m headland, which this field has room for.
-        let cfg = LaneSwitchConfig { max_headland_excursion_m: 2.0, ..LaneSwitchConfig::default() };
-        let mut sw = LaneSwitcher::new(cfg.clone(), ReferenceConfig::default()).unwrap();
+    /// A switcher that followed y = 0 from x = 1 and saw the canopy end 2 m ahead (x = 3), with the
+    /// row centroids `centroids` (`base_link` at x = 1), then drove on to `to_x` (or until it turns).
+    fn approach_end(cfg: LaneSwitchConfig, centroids: &[[f64; 2]], to_x: f64) -> (LaneSwitcher, f64) {
+        let mut sw = LaneSwitcher::new(cfg, ReferenceConfig::default()).unwrap();
         let ended = |t: f64, ahead: f64| Detection { row_end_ahead_m: Some(ahead), ..rows(t, 0.0) };
-        sw.update(&Pose2::new(1.0, 0.0, 0.0), Some(&rows(0.0, 0.0)));
-        sw.update(&Pose2::new(1.0, 0.0, 0.0), Some(&ended(0.1, 2.0)));
-        sw.observe_canopy(
-            &Pose2::new(1.0, 0.0, 0.0),
-            &ended(0.1, 2.0),
-            &[[1.9, 0.37], [2.3, 0.38], [1.95, -0.37]],
-        );
+        let at = Pose2::new(1.0, 0.0, 0.0);
+        sw.update(&at, Some(&rows(0.0, 0.0)));
+        sw.update(&at, Some(&ended(0.1, 2.0)));
+        sw.observe_canopy(&at, &ended(0.1, 2.0), centroids);
         let mut x = 1.0;
-        while sw.mode() != Mode::Turning && x < 6.0 {
+        while !matches!(sw.mode(), Mode::Turning | Mode::Stopped { .. }) && x < to_x {
             x += 0.01;
             sw.update(&Pose2::new(x, 0.0, 0.0), None);
         }
+        (sw, x)
+    }
+
+    #[test]
+    fn a_measured_row_end_past_the_lane_end_moves_the_first_pivot_out() {
+        // The left row's last centroid 0.2 m past the lane's end (a ragged end): the robot pivots
+        // 0.2 m farther out. A centroid more than a map bin past the canopy end is not believed. The
+        // rows not seen are taken to run as far as the farthest seen: the second pivot moves out too,
+        // past 1.5 m.
+        let cfg = LaneSwitchConfig { max_headland_excursion_m: 2.0, ..LaneSwitchConfig::default() };
+        let (sw, x) =
+            approach_end(cfg.clone(), &[[1.9, 0.37], [2.2, 0.38], [1.95, -0.37], [2.4, -0.36]], 6.0);
         assert_eq!(sw.mode(), Mode::Turning);
         let plan = sw.pivots().unwrap();
         let square = cfg.pivot_plan(0.75, -1.0, |_| 0.0);
-        assert!((plan.first_m - (square.first_m + 0.3)).abs() < 1e-9, "{plan:?}");
+        assert!((plan.first_m - (square.first_m + 0.2)).abs() < 1e-9, "{plan:?}");
         assert!((x - 3.0 - plan.first_m).abs() <= 0.021, "turned at x {x}, plan {plan:?}");
     }
 
     #[test]
     fn a_turn_the_measured_ends_push_past_the_headland_stops_instead() {
-        let mut sw = LaneSwitcher::new(LaneSwitchConfig::default(), ReferenceConfig::default()).unwrap();
-        let ended = |t: f64, ahead: f64| Detection { row_end_ahead_m: Some(ahead), ..rows(t, 0.0) };
-        sw.update(&Pose2::new(1.0, 0.0, 0.0), Some(&rows(0.0, 0.0)));
-        sw.update(&Pose2::new(1.0, 0.0, 0.0), Some(&ended(0.1, 2.0)));
-        sw.observe_canopy(
-            &Pose2::new(1.0, 0.0, 0.0),
-            &ended(0.1, 2.0),
-            &[[1.9, 0.37], [2.3, 0.38], [1.95, -0.37]],
-        );
-        sw.update(&Pose2::new(3.05, 0.0, 0.0), None);
-        sw.update(&Pose2::new(3.1, 0.0, 0.0), None);
+        // The row beyond the lane's right row runs on 0.2 m: turning right, the second pivot would stand
+        // 1.54 m out, past the 1.5 m headland.
+        let (sw, _) = approach_end(LaneSwitchConfig::default(), &[[1.9, 0.37], [2.2, -1.12]], 3.1);
         assert_eq!(sw.mode(), Mode::Stopped { reason: StopReason::NoRoomToTurn });
+        // With room for it, the same field is turned in.
+        let roomy = LaneSwitchConfig { max_headland_excursion_m: 2.0, ..LaneSwitchConfig::default() };
+        let (sw, _) = approach_end(roomy, &[[1.9, 0.37], [2.2, -1.12]], 6.0);
+        assert_eq!(sw.mode(), Mode::Turning);
+        assert!(sw.pivots().unwrap().second_m > 1.5, "{:?}", sw.pivots());
     }
 
     #[test]
