@@ -23,28 +23,32 @@
 //!
 //! # The headland turn and what is bounded
 //! Beyond the paper's open-loop PID turns (Sec. III-B), the turn is a path in `odom` tracked by the
-//! same MPC: from the centre line `d₀` past the row end, a quarter arc of radius `r`, a straight of
-//! `shift − 2r`, a second quarter arc turning the same way, then a straight back into the field along
-//! the next lane, `shift = 2 · row_spacing · lane_step` to the side. With `r = 0` (the default: a
-//! skid-steer turns on the spot) the arcs become pivots: the robot brakes to a stop at `d₀`, turns in
-//! place until it heads along the straight, drives it, stops and pivots again into the next lane. A
-//! pivot is a corner of the path; the MPC tracks the leg after it with zero cruise speed, so it turns
-//! on the spot under the same bounds on ω and ω̇. The row end is a line across the rows through the
-//! end of the crop (the field's headland edge is assumed square, so the next lane ends on the same
-//! line).
+//! same MPC. With `r = 0` (the default: a skid-steer turns on the spot) the robot brakes to a stop at
+//! the first pivot on the lane's centre line, turns in place until it heads along the straight to the
+//! second pivot on the next lane's centre line, `shift = 2 · spacing · lane_step` to the side, stops
+//! and pivots again into the next lane. A pivot is a corner of the path; the MPC tracks the leg after
+//! it with zero cruise speed, so it turns on the spot under the same bounds on ω and ω̇. The spacing
+//! is the one the detector measured along the lanes (a running mean), `row_spacing_m` until it has
+//! one. With `r > 0` the pivots become quarter arcs of radius `r` on a square headland.
 //!
-//! Bounded, with `d` the along-row distance of `base_link` past the row-end line and the tyre patches
-//! (`tire_length × tire_width` at `(±wheel_x, ±wheel_y)`) the parts that crush plants:
-//! * during an arc the inner tyres swing backwards round the turning centre, `r` to the side of the
-//!   centre line; the farthest patch corner is `ρ = √((wheel_x + l/2)² + (|wheel_y − r| + w/2)²)` from
-//!   it, and the plants nearest to it stand on the row line `m` to its side (rows lie `(k + ½)·spacing`
-//!   either side of the centre line). No plant is in that reach when `d₀ ≥ √(ρ² − m²)`;
-//! * sideways between the arcs the tyres are `wheel_y + w/2 − r` behind `base_link` along the rows,
-//!   and with arcs the outer rear tyre starts `wheel_x + l/2` behind it and moves across the rows;
-//! * so the turn starts at `d₀` = the largest of these plus `clearance_margin_m`
-//!   ([`LaneSwitchConfig::turn_start_m`]), and the planned maximum of `d`, `d₀ + r`, must not exceed
-//!   `max_headland_excursion_m` (checked at construction). With the Amiga-like defaults a pivot
-//!   gives `d₀ = √(1.072² − 0.375²) + 0.15 = 1.15 m`, the smallest of all radii (`d₀ + r` grows with `r`).
+//! Where the pivots stand comes from the measured geometry ([`crate::control::headland`]): while
+//! following, the detector's mapped row centroids are sorted into rows about the centre line and the
+//! farthest of each row is kept; each row is taken to end `row_end_allowance_m` past it (rows the
+//! detector did not map follow the line through the measured ends). Each pivot stands where the
+//! circle its farthest tyre-patch corner sweeps (`ρ = √((wheel_x + l/2)² + (wheel_y + w/2)²)`) misses
+//! every row end by `clearance_margin_m` plus the odometry drift (`odometry_drift_fraction` of the
+//! blind distance from where the plants were last seen, `default_row_end_ahead_m` ahead), the
+//! second also allowing that drift sideways over the shift. The two pivots may stand at different
+//! distances (rows ending on a skewed or ragged line); the straight between them keeps its patches
+//! past the rows it crosses. A pivot turn never starts nearer than on a square headland
+//! ([`LaneSwitchConfig::turn_start_m`]: 1.34 m with the Amiga-like defaults, the second pivot
+//! binding); when the measured ends need more than `max_headland_excursion_m`, the robot stops
+//! (`no_room_to_turn`) instead. The planned maximum of `d`, the along-row distance of `base_link`
+//! past the row end, is checked at construction for the square headland.
+//!
+//! After the turn the detector is reset and must confirm the new lane: until one detection agrees
+//! with the plan, the robot drives on odometry alone, and its front tyres stop `clearance_margin_m`
+//! short of the new lane's row ends (`reentry_not_confirmed`).
 //!
 //! The row end comes from the detector: where the canopy of the lane ends, to the resolution of its
 //! map bins, which places it up to a bin plus the leaves' overhang past the last plant. When the

@@ -11,8 +11,9 @@
 //! (1-2 headland turns, alternately left and right, sometimes skipping a lane) and none, one or two
 //! faults from [`crate::faults`] (or a LiDAR that dies for good), placed along the rows with
 //! parameters in the ranges. A run drives about 20-45 m. The row curve's skew at the row ends
-//! is kept under [`MAX_END_SKEW_RAD`]: the headland turn assumes a square headland edge
-//! ([`croprow_core::control::lane_switch`]), and a skewed one is a known limit, not a soak finding.
+//! is kept under [`MAX_END_SKEW_RAD`] (the headland turn plans against the measured row ends,
+//! [`croprow_core::control::headland`]); turns may go [`HEADLAND_EXCURSION_M`] past them (a 5 m
+//! headland).
 //!
 //! # What the monitor counts
 //! Against the simulator's truth, never the navigator's own belief:
