@@ -28,8 +28,8 @@ fn half_period_lock_at_the_start_never_drives_into_the_rows() {
     // Grown corn 0.70 m apart: the detector locked on half the row period (rows ~0.35 m apart) from
     // the first scans, steered the robot 0.17 m sideways and ran over 9 plants in the first metre.
     // Since turns are planned from the measured row ends and an unconfirmed lane is not entered on
-    // odometry alone (`soak_turns`), the unguarded run stops at the crop edge after its turn with no
-    // contact, so this seed now only checks the guarded run (`rows_at_half_the_row_spacing_are_never_
+    // odometry alone (`soak_turns`), the unguarded run drives both lanes with no contact (measured:
+    // done, 31 m), so this seed now only checks the guarded run (`rows_at_half_the_row_spacing_are_never_
     // followed` in the core keeps guarding the spacing check itself).
     safe_run(8, "grown corn 13.2 m", false);
 }
