@@ -210,6 +210,10 @@ impl Navigator {
                 Detection::empty(scan.stamp_s, RowStatus::InvalidInput)
             }
         });
+        if let Some(d) = detection.filter(|d| d.status != RowStatus::InvalidInput) {
+            // The detector's mapped row centroids tell the lane switcher where each row ends.
+            self.switcher.observe_canopy(&input.odom, &d, self.detector.centroids());
+        }
         self.advance(input.stamp_s, input.odom, detection, input.mpc_budget)
     }
 

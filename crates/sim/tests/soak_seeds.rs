@@ -27,7 +27,11 @@ fn safe_run(seed: u64, summary: &str, provokes: bool) -> Outcome {
 fn half_period_lock_at_the_start_never_drives_into_the_rows() {
     // Grown corn 0.70 m apart: the detector locked on half the row period (rows ~0.35 m apart) from
     // the first scans, steered the robot 0.17 m sideways and ran over 9 plants in the first metre.
-    safe_run(8, "grown corn 13.2 m", true);
+    // Since turns are planned from the measured row ends and an unconfirmed lane is not entered on
+    // odometry alone (`soak_turns`), the unguarded run drives both lanes with no contact (measured:
+    // done, 31 m), so this seed now only checks the guarded run (`rows_at_half_the_row_spacing_are_never_
+    // followed` in the core keeps guarding the spacing check itself).
+    safe_run(8, "grown corn 13.2 m", false);
 }
 
 #[test]

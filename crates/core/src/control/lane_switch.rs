@@ -23,28 +23,32 @@
 //!
 //! # The headland turn and what is bounded
 //! Beyond the paper's open-loop PID turns (Sec. III-B), the turn is a path in `odom` tracked by the
-//! same MPC: from the centre line `d₀` past the row end, a quarter arc of radius `r`, a straight of
-//! `shift − 2r`, a second quarter arc turning the same way, then a straight back into the field along
-//! the next lane, `shift = 2 · row_spacing · lane_step` to the side. With `r = 0` (the default: a
-//! skid-steer turns on the spot) the arcs become pivots: the robot brakes to a stop at `d₀`, turns in
-//! place until it heads along the straight, drives it, stops and pivots again into the next lane. A
-//! pivot is a corner of the path; the MPC tracks the leg after it with zero cruise speed, so it turns
-//! on the spot under the same bounds on ω and ω̇. The row end is a line across the rows through the
-//! end of the crop (the field's headland edge is assumed square, so the next lane ends on the same
-//! line).
+//! same MPC. With `r = 0` (the default: a skid-steer turns on the spot) the robot brakes to a stop at
+//! the first pivot on the lane's centre line, turns in place until it heads along the straight to the
+//! second pivot on the next lane's centre line, `shift = 2 · spacing · lane_step` to the side, stops
+//! and pivots again into the next lane. A pivot is a corner of the path; the MPC tracks the leg after
+//! it with zero cruise speed, so it turns on the spot under the same bounds on ω and ω̇. The spacing
+//! is the planted one, `row_spacing_m` (see [`LaneSwitcher::spacing_m`]). With `r > 0` the pivots
+//! become quarter arcs of radius `r` on a square headland.
 //!
-//! Bounded, with `d` the along-row distance of `base_link` past the row-end line and the tyre patches
-//! (`tire_length × tire_width` at `(±wheel_x, ±wheel_y)`) the parts that crush plants:
-//! * during an arc the inner tyres swing backwards round the turning centre, `r` to the side of the
-//!   centre line; the farthest patch corner is `ρ = √((wheel_x + l/2)² + (|wheel_y − r| + w/2)²)` from
-//!   it, and the plants nearest to it stand on the row line `m` to its side (rows lie `(k + ½)·spacing`
-//!   either side of the centre line). No plant is in that reach when `d₀ ≥ √(ρ² − m²)`;
-//! * sideways between the arcs the tyres are `wheel_y + w/2 − r` behind `base_link` along the rows,
-//!   and with arcs the outer rear tyre starts `wheel_x + l/2` behind it and moves across the rows;
-//! * so the turn starts at `d₀` = the largest of these plus `clearance_margin_m`
-//!   ([`LaneSwitchConfig::turn_start_m`]), and the planned maximum of `d`, `d₀ + r`, must not exceed
-//!   `max_headland_excursion_m` (checked at construction). With the Amiga-like defaults a pivot
-//!   gives `d₀ = √(1.072² − 0.375²) + 0.15 = 1.15 m`, the smallest of all radii (`d₀ + r` grows with `r`).
+//! Where the pivots stand comes from the measured geometry ([`crate::control::headland`]): while
+//! following, the detector's mapped row centroids are sorted into rows about the centre line and the
+//! farthest of each row is kept; each row is taken to end `row_end_allowance_m` past it (rows the
+//! detector did not map follow the line through the measured ends). Each pivot stands where the
+//! circle its farthest tyre-patch corner sweeps (`ρ = √((wheel_x + l/2)² + (wheel_y + w/2)²)`) misses
+//! every row end by `clearance_margin_m` plus the odometry drift (`odometry_drift_fraction` of the
+//! blind distance from where the plants were last seen, `default_row_end_ahead_m` ahead), the
+//! second also allowing that drift sideways over the shift. The two pivots may stand at different
+//! distances (rows ending on a skewed or ragged line); the straight between them keeps its patches
+//! past the rows it crosses. A pivot turn never starts nearer than on a square headland
+//! ([`LaneSwitchConfig::turn_start_m`]: 1.34 m with the Amiga-like defaults, the second pivot
+//! binding); when the measured ends need more than `max_headland_excursion_m`, the robot stops
+//! (`no_room_to_turn`) instead. The planned maximum of `d`, the along-row distance of `base_link`
+//! past the row end, is checked at construction for the square headland.
+//!
+//! After the turn the detector is reset and must confirm the new lane: until one detection agrees
+//! with the plan, the robot drives on odometry alone, and its front tyres stop `clearance_margin_m`
+//! short of the new lane's row ends (`reentry_not_confirmed`).
 //!
 //! The row end comes from the detector: where the canopy of the lane ends, to the resolution of its
 //! map bins, which places it up to a bin plus the leaves' overhang past the last plant. When the
@@ -52,10 +56,11 @@
 //! is put at that centroid instead: the centre of the last plants' canopy, a better estimate of where
 //! the stems end.
 
-use std::f64::consts::FRAC_PI_2;
+use std::f64::consts::{FRAC_PI_2, PI};
 
 use serde::{Deserialize, Serialize};
 
+use crate::control::headland::{Clearance, Footprint, PivotPlan, RowEnds, plan_pivots};
 use crate::control::path::{Path, Segment};
 use crate::control::reference::{Reference, ReferenceConfig};
 use crate::error::{ConfigError, check_range};
@@ -65,6 +70,12 @@ use crate::perception::{Detection, RowStatus};
 /// How far ahead of the robot a new centre line is checked against the one followed, m (see
 /// `LaneSwitchConfig::max_line_jump_m`): about where the MPC's 2 s horizon at cruise speed ends.
 const LINE_CHECK_AHEAD_M: f64 = 1.5;
+/// Length of the detector's map bins, m: a centroid up to one bin past the reported canopy end still
+/// belongs to the last plants.
+const ROW_END_BIN_M: f64 = 0.25;
+/// Weight of each scan's row spacing in the running mean the turns use: about the last 20 scans
+/// (2 m at cruise speed).
+const SPACING_GAIN: f64 = 0.05;
 
 /// Which way the robot turns at a row end.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -112,10 +123,18 @@ pub struct LaneSwitchConfig {
     /// Radius of the two quarter arcs of the headland turn, m; 0 pivots in place, the turn that stays
     /// nearest to the row end (see the module docs). Default 0 (a skid-steer).
     pub turn_radius_m: f64,
-    /// Distance kept between the swept tyre patches and the row end, m: it absorbs the row-end
-    /// estimate's error and the odometry's drift over the few metres driven blind past the end.
-    /// Default 0.15.
+    /// Distance kept along the rows between the swept tyre patches and the nearest plant, m, on top
+    /// of `row_end_allowance_m` and the odometry drift (`odometry_drift_fraction`). Default 0.05.
     pub clearance_margin_m: f64,
+    /// Distance a row's last stem may stand past the farthest row centroid the detector mapped on it,
+    /// m: a centroid is the mean of a 0.25 m map bin, the last plants' canopy centre, so with two
+    /// plants in the last bin (0.15-0.2 m apart) the last stem is half that past it. Default 0.05.
+    pub row_end_allowance_m: f64,
+    /// Odometry error per metre driven since the row ends were last seen, along and across the rows:
+    /// wheel slip makes the wheels over-report the distance (the simulated soil slips 3 % ± 1 %, and
+    /// the odometry over-reported 4.5-5.2 % on the soak's lanes), so a pivot planned 1.2 m past an end
+    /// last seen 1.6 m ahead lands up to 0.14 m short. Default 0.05.
+    pub odometry_drift_fraction: f64,
     /// Distance of the wheel contact points ahead of and behind `base_link`, m. Default 0.6095.
     pub wheel_x_m: f64,
     /// Distance of the wheel contact points to the side of `base_link`, m. Default 0.762.
@@ -150,7 +169,10 @@ pub struct LaneSwitchConfig {
     pub entry_alignment_m: f64,
     /// Consistent detections needed to confirm a lane (and inconsistent ones to refuse it). Default 3.
     pub entry_confirmations: u32,
-    /// Deepest `base_link` may go into the field before the new lane is confirmed, m. Default 1.0.
+    /// Deepest `base_link` may go into the field before the new lane is confirmed, m, once the
+    /// detector agrees with the planned lane (the robot then tracks the rows it sees). Before any
+    /// detection agrees, the front tyres stop `clearance_margin_m` short of the new lane's row ends.
+    /// Default 1.0.
     pub max_unconfirmed_entry_m: f64,
     /// Distance to the row end assumed when the detector reports the end of the row without saying
     /// where (the paper's pipeline, which sees the canopy thin out), m. Default 1.6: where the lowest
@@ -188,7 +210,9 @@ impl Default for LaneSwitchConfig {
             turn_speed_mps: 0.3,
             entry_speed_mps: 0.2,
             turn_radius_m: 0.0,
-            clearance_margin_m: 0.15,
+            clearance_margin_m: 0.05,
+            row_end_allowance_m: 0.05,
+            odometry_drift_fraction: 0.05,
             wheel_x_m: 0.6095,
             wheel_y_m: 0.762,
             tire_width_m: 0.15,
@@ -229,6 +253,8 @@ impl LaneSwitchConfig {
         check_range("lane_switch.stop_decel_mps2", self.stop_decel_mps2, 0.01, 10.0)?;
         check_range("lane_switch.row_end_window_m", self.row_end_window_m, 0.0, 5.0)?;
         check_range("lane_switch.clearance_margin_m", self.clearance_margin_m, 0.0, 10.0)?;
+        check_range("lane_switch.row_end_allowance_m", self.row_end_allowance_m, 0.0, 5.0)?;
+        check_range("lane_switch.odometry_drift_fraction", self.odometry_drift_fraction, 0.0, 0.5)?;
         check_range("lane_switch.max_headland_excursion_m", self.max_headland_excursion_m, 0.1, 50.0)?;
         check_range("lane_switch.max_blind_distance_m", self.max_blind_distance_m, 0.0, 100.0)?;
         check_range("lane_switch.end_approach_m", self.end_approach_m, 0.0, 10.0)?;
@@ -289,9 +315,15 @@ impl LaneSwitchConfig {
         2.0 * self.row_spacing_m * f64::from(self.lane_step)
     }
 
-    /// Distance `d₀` of `base_link` past the row end where the turn starts, m: the least that keeps
-    /// every tyre patch off the crop during the turn, plus `clearance_margin_m` (see the module docs).
+    /// Distance `d₀` of `base_link` past the row end where the turn starts on a square headland with
+    /// rows `row_spacing_m` apart, m: the least that keeps every tyre patch off the crop during the
+    /// turn, plus the clearance budget (see the module docs). A pivot turn starts no nearer than this
+    /// and farther where the measured row ends need it.
     pub fn turn_start_m(&self) -> f64 {
+        if self.pivots() {
+            // A square headland is symmetric: either side gives the same pivots.
+            return self.pivot_plan(self.row_spacing_m, 1.0, |_| 0.0).excursion_m();
+        }
         let r = self.turn_radius_m;
         let (half_l, half_w) = (0.5 * self.tire_length_m, 0.5 * self.tire_width_m);
         let reach = (self.wheel_x_m + half_l).hypot((self.wheel_y_m - r).abs() + half_w);
@@ -301,7 +333,37 @@ impl LaneSwitchConfig {
         let swing = (reach * reach - nearest * nearest).max(0.0).sqrt();
         let sideways = self.wheel_y_m + half_w - r;
         let outer_rear = if r > 0.0 { self.wheel_x_m + half_l } else { 0.0 };
-        swing.max(sideways).max(outer_rear) + self.clearance_margin_m
+        let budget = self.clearance();
+        swing.max(sideways).max(outer_rear)
+            + self.clearance_margin_m
+            + budget.allowance_m
+            + budget.drift_fraction * (budget.view_m + reach)
+    }
+
+    /// The tyre patches.
+    pub fn footprint(&self) -> Footprint {
+        Footprint {
+            wheel_x_m: self.wheel_x_m,
+            wheel_y_m: self.wheel_y_m,
+            tire_length_m: self.tire_length_m,
+            tire_width_m: self.tire_width_m,
+        }
+    }
+
+    fn clearance(&self) -> Clearance {
+        Clearance {
+            margin_m: self.clearance_margin_m,
+            allowance_m: self.row_end_allowance_m,
+            drift_fraction: self.odometry_drift_fraction,
+            view_m: self.default_row_end_ahead_m.max(0.0),
+        }
+    }
+
+    /// The pivots of a turn `side` (+1 left, −1 right) between lanes of rows `spacing_m` apart,
+    /// the rows ending `row_end_m(q)` past the row-end line (see [`plan_pivots`]).
+    fn pivot_plan(&self, spacing_m: f64, side: f64, row_end_m: impl Fn(i32) -> f64) -> PivotPlan {
+        let shift = 2.0 * spacing_m * f64::from(self.lane_step) * side;
+        plan_pivots(&self.footprint(), &self.clearance(), spacing_m, shift, row_end_m)
     }
 
     /// Planned largest distance of `base_link` past the row end, m: `turn_start_m + turn_radius_m`.
@@ -342,6 +404,9 @@ pub enum StopReason {
     InvalidOdometry,
     /// The MPC failed (non-finite numbers or solver error); set by the caller.
     SolverFailed,
+    /// The measured row ends leave no room for a contact-free turn within
+    /// `max_headland_excursion_m`.
+    NoRoomToTurn,
 }
 
 impl StopReason {
@@ -361,6 +426,7 @@ impl StopReason {
             StopReason::WrongLane => "wrong_lane",
             StopReason::InvalidOdometry => "invalid_odometry",
             StopReason::SolverFailed => "solver_failed",
+            StopReason::NoRoomToTurn => "no_room_to_turn",
         }
     }
 }
@@ -450,6 +516,16 @@ pub struct LaneSwitcher {
     pivoting: bool,
     /// How far the row end lies before the detector's canopy end (see `row_end_window_m`), m.
     end_trim_m: f64,
+    /// The farthest canopy seen on each row of the current lane (`odom`).
+    row_ends: RowEnds,
+    /// Row spacing measured by the detector along the lanes so far (a running mean), m.
+    measured_spacing_m: Option<f64>,
+    /// The pivots planned at the current row end, once it is known (pivot turns only).
+    pivots: Option<PivotPlan>,
+    /// Along-row distance past the exit line of the new lane's row ends, m (for the entry stop).
+    entry_row_end_m: f64,
+    /// True once a detection agreed with the planned lane and the entry follows the rows seen.
+    entry_anchored: bool,
 }
 
 impl LaneSwitcher {
@@ -474,6 +550,11 @@ impl LaneSwitcher {
             max_excursion_m: 0.0,
             pivoting: false,
             end_trim_m: 0.0,
+            row_ends: RowEnds::default(),
+            measured_spacing_m: None,
+            pivots: None,
+            entry_row_end_m: 0.0,
+            entry_anchored: false,
             cfg,
         })
     }
@@ -524,6 +605,50 @@ impl LaneSwitcher {
             Mode::Turning | Mode::Entering => self.exit_line,
             _ => self.row_end,
         }
+    }
+
+    /// Feeds the row centroids the detector mapped at this scan (`base_link` at `odom`, m; e.g.
+    /// [`crate::perception::RowDetector::centroids`]) with the scan's detection. While a lane is
+    /// followed, the farthest one of each row tells where that row ends, and the headland turn is
+    /// planned against those ends (see [`crate::control::headland`]); without them every row is taken
+    /// to end at the lane's row end. Only scans that see the canopy end count (the last plants are
+    /// in view from about 3 m before it), and only centroids up to one `ROW_END_BIN_M` past that end:
+    /// beyond it they are not plants of the lane's rows (ground seen through a mis-pitched sensor,
+    /// clutter in the headland).
+    pub fn observe_canopy(&mut self, odom: &Pose2, detection: &Detection, centroids: &[[f64; 2]]) {
+        if self.mode != Mode::Following || !odom.is_finite() {
+            return;
+        }
+        let Some(reach) = detection.row_end_ahead_m.filter(|a| a.is_finite()).map(|a| a + ROW_END_BIN_M)
+        else {
+            return;
+        };
+        let spacing = self.spacing_m();
+        let hint = self.s_hint_m;
+        let Some(path) = self.reference.path() else { return };
+        let points = centroids.iter().filter(|c| c[0] <= reach).map(|c| odom.transform_point(c[0], c[1]));
+        self.row_ends.observe(spacing, points, |x, y| {
+            let f = path.project(&Pose2::new(x, y, 0.0), hint);
+            (f.s_m, f.lateral_m)
+        });
+    }
+
+    /// The row spacing the turns use, m: `row_spacing_m`, the planted spacing. The detector's running
+    /// mean ([`LaneSwitcher::measured_spacing_m`]) is not used for the shift: on grown canopies it
+    /// reads a few percent low (0.734 m for 0.78 m rows on soak seed 17), which over a two-lane
+    /// shift put the robot 0.18 m off the next lane, while the planted spacing is known exactly.
+    pub fn spacing_m(&self) -> f64 {
+        self.cfg.row_spacing_m
+    }
+
+    /// The row spacing the detector measured along the lanes driven so far (a running mean), m.
+    pub fn measured_spacing_m(&self) -> Option<f64> {
+        self.measured_spacing_m
+    }
+
+    /// The pivots planned at the current row end (pivot turns, once the row end is known), m past it.
+    pub fn pivots(&self) -> Option<PivotPlan> {
+        self.pivots
     }
 
     /// Latches a stop decided by the caller (e.g. the MPC failed).
@@ -582,9 +707,14 @@ impl LaneSwitcher {
                         self.row_end = Some(refined);
                     }
                 }
+                self.replan();
                 let tolerance = if self.stops_at_turn_start() { STOP_TOLERANCE_M } else { 0.0 };
-                if let Some(end) = self.row_end
-                    && along(&end, odom) >= self.cfg.turn_start_m() - tolerance
+                if self.pivots.is_some_and(|p| p.excursion_m() > self.cfg.max_headland_excursion_m)
+                    && !self.is_last_lane()
+                {
+                    self.mode = Mode::Stopped { reason: StopReason::NoRoomToTurn };
+                } else if let Some(end) = self.row_end
+                    && along(&end, odom) >= self.exit_start_m() - tolerance
                 {
                     self.lanes_completed = self.lanes_completed.saturating_add(1);
                     if self.lanes_completed >= self.cfg.lane_count() {
@@ -616,7 +746,49 @@ impl LaneSwitcher {
     /// True when the robot must stand still where the turn starts: it pivots there, or the mission
     /// ends there.
     fn stops_at_turn_start(&self) -> bool {
-        self.cfg.pivots() || self.lanes_completed.saturating_add(1) >= self.cfg.lane_count()
+        self.cfg.pivots() || self.is_last_lane()
+    }
+
+    /// True while driving the last lane of the mission.
+    fn is_last_lane(&self) -> bool {
+        self.lanes_completed.saturating_add(1) >= self.cfg.lane_count()
+    }
+
+    /// Which way the next turn goes: +1 left, −1 right (turns alternate from `first_turn`).
+    fn next_side(&self) -> f64 {
+        if self.turn_index.is_multiple_of(2) {
+            self.cfg.first_turn.sign()
+        } else {
+            -self.cfg.first_turn.sign()
+        }
+    }
+
+    /// Where past the row end the robot stops to turn (or to end the mission), m.
+    fn exit_start_m(&self) -> f64 {
+        match self.pivots {
+            Some(p) if !self.is_last_lane() => p.first_m,
+            _ => self.cfg.turn_start_m(),
+        }
+    }
+
+    /// Plans the pivots against the measured row ends of the lane (pivot turns only), never nearer
+    /// than the square-headland plan.
+    fn replan(&mut self) {
+        let Some(end) = self.row_end.filter(|_| self.cfg.pivots()) else {
+            self.pivots = None;
+            return;
+        };
+        let spacing = self.spacing_m();
+        let nominal = self.cfg.turn_start_m();
+        let ends = &self.row_ends;
+        // Centroids stored before the end came into view may lie in the headland: no row is believed to
+        // run on more than `row_end_window_m` past the lane's end.
+        let window = self.cfg.row_end_window_m;
+        let plan = self
+            .cfg
+            .pivot_plan(spacing, self.next_side(), |q| ends.end_or_fit_m(q, &end, spacing).min(window));
+        self.pivots =
+            Some(PivotPlan { first_m: plan.first_m.max(nominal), second_m: plan.second_m.max(nominal) });
     }
 
     /// The highest speed from which the robot stops within `remaining_m` at `stop_decel_mps2`, m/s.
@@ -660,10 +832,9 @@ impl LaneSwitcher {
         match self.mode {
             Mode::Following => self.cfg.cruise_speed_mps,
             Mode::ClearingRowEnd => match self.row_end {
-                Some(end) if self.stops_at_turn_start() => self
-                    .cfg
-                    .turn_speed_mps
-                    .min(self.braking_speed(self.cfg.turn_start_m() - along(&end, odom))),
+                Some(end) if self.stops_at_turn_start() => {
+                    self.cfg.turn_speed_mps.min(self.braking_speed(self.exit_start_m() - along(&end, odom)))
+                }
                 _ => self.cfg.turn_speed_mps,
             },
             Mode::Turning if self.pivoting => 0.0,
@@ -697,6 +868,8 @@ impl LaneSwitcher {
         self.exit_line = None;
         self.end_trim_m = 0.0;
         self.pivoting = false;
+        self.row_ends.clear();
+        self.pivots = None;
         self.s_hint_m = self.reference.path().map_or(0.0, |p| p.project(odom, 0.0).s_m);
     }
 
@@ -705,6 +878,11 @@ impl LaneSwitcher {
         if let Some(d) = detection {
             if d.status != RowStatus::Lost && self.continues_line(d, odom) {
                 saw_rows = self.reference.update(d, odom);
+            }
+            if saw_rows && let Some(s) = d.row_spacing_m.filter(|s| s.is_finite() && *s > 0.0) {
+                // A slow running mean: one scan's estimate wobbles by centimetres.
+                let m = self.measured_spacing_m.get_or_insert(s);
+                *m += SPACING_GAIN * (s - *m);
             }
             if let Some(ahead) = self.end_ahead(d) {
                 self.row_end = Some(self.end_from(odom, ahead));
@@ -808,23 +986,34 @@ impl LaneSwitcher {
     }
 
     fn plan_turn(&mut self, odom: &Pose2, end: &Pose2) {
-        let side = if self.turn_index.is_multiple_of(2) {
-            self.cfg.first_turn.sign()
-        } else {
-            -self.cfg.first_turn.sign()
-        };
+        let side = self.next_side();
         let r = self.cfg.turn_radius_m;
-        let shift = self.cfg.shift_m();
+        let spacing = self.spacing_m();
+        let shift = 2.0 * spacing * f64::from(self.cfg.lane_step);
+        // The new lane's rows: where its front tyres must stop until the lane is seen.
+        let q = (side * 2.0 * f64::from(self.cfg.lane_step)) as i32;
+        let window = self.cfg.row_end_window_m;
+        self.entry_row_end_m = self
+            .row_ends
+            .end_or_fit_m(q - 1, end, spacing)
+            .min(window)
+            .max(self.row_ends.end_or_fit_m(q, end, spacing).min(window))
+            + self.cfg.row_end_allowance_m;
+        self.entry_anchored = false;
         let d = along(end, odom);
         let entry_m = d + self.cfg.max_unconfirmed_entry_m + 10.0;
         self.turn.clear();
         if self.cfg.pivots() {
-            // Corners at the planned start and one shift over: the robot stopped within a few
-            // centimetres of the start, and the straight's lateral error takes that up.
-            let start = end.compose(&Pose2::new(self.cfg.turn_start_m(), 0.0, side * FRAC_PI_2));
-            self.turn.push(start, shift, 0.0);
-            let corner = self.turn.pose_at(shift);
-            self.turn.push(corner.compose(&Pose2::new(0.0, 0.0, side * FRAC_PI_2)), entry_m, 0.0);
+            // Corners at the planned pivots, one on each lane's centre line (the straight between them
+            // is oblique when the rows end on a skewed line): the robot stopped within a few
+            // centimetres of the first, and the straight's lateral error takes that up.
+            let start_m = self.exit_start_m();
+            let PivotPlan { first_m, second_m } =
+                self.pivots.unwrap_or(PivotPlan { first_m: start_m, second_m: start_m });
+            let lateral = side * shift;
+            let leg = Pose2::new(first_m, 0.0, lateral.atan2(second_m - first_m));
+            self.turn.push(end.compose(&leg), (second_m - first_m).hypot(shift), 0.0);
+            self.turn.push(end.compose(&Pose2::new(second_m, lateral, PI)), entry_m, 0.0);
             self.pivoting = true;
         } else {
             // Start on the old centre line abreast of the robot, heading along the row.
@@ -846,7 +1035,7 @@ impl LaneSwitcher {
     /// decimetres over a headland turn, so the robot aligns with the lane it sees, not the one it
     /// planned, before its wheels reach the crop. Only called for a detection that agrees with the
     /// plan (within `entry_lateral_tolerance_m`, under half a lane away).
-    fn anchor_entry(&mut self, entry: &Segment, c: &Pose2) {
+    fn anchor_entry(&mut self, entry: &Segment, c: &Pose2, spacing_m: Option<f64>) {
         let rel = c.relative(&entry.start);
         // entry.start expressed on the detected line: its foot point, with the line's heading.
         let foot = c.compose(&Pose2::new(rel.x, 0.0, 0.0));
@@ -854,7 +1043,8 @@ impl LaneSwitcher {
         // lane the detector sees.
         self.turn.clear();
         self.turn.push(foot, entry.length_m, 0.0);
-        self.turn.set_row_spacing(Some(self.cfg.row_spacing_m));
+        self.turn.set_row_spacing(Some(spacing_m.unwrap_or(self.spacing_m())));
+        self.entry_anchored = true;
     }
 
     fn enter(&mut self, odom: &Pose2, detection: Option<&Detection>) {
@@ -876,7 +1066,7 @@ impl LaneSwitcher {
             {
                 self.agree = self.agree.saturating_add(1);
                 self.disagree = 0;
-                self.anchor_entry(&entry, &c);
+                self.anchor_entry(&entry, &c, d.row_spacing_m);
             } else {
                 self.disagree = self.disagree.saturating_add(1);
                 self.agree = 0;
@@ -893,10 +1083,16 @@ impl LaneSwitcher {
                 return;
             }
         }
-        if let Some(end) = self.exit_line
-            && -along(&end, odom) > self.cfg.max_unconfirmed_entry_m
-        {
-            self.mode = Mode::Stopped { reason: StopReason::ReentryNotConfirmed };
+        if let Some(end) = self.exit_line {
+            // Until a detection agrees with the plan, the robot drives on odometry alone: its front
+            // tyres stay out of the new lane's crop.
+            let front_m = along(&end, odom) - self.cfg.wheel_x_m - 0.5 * self.cfg.tire_length_m;
+            let blind_limit = !self.entry_anchored
+                && self.cfg.pivots()
+                && front_m < self.entry_row_end_m + self.cfg.clearance_margin_m;
+            if blind_limit || -along(&end, odom) > self.cfg.max_unconfirmed_entry_m {
+                self.mode = Mode::Stopped { reason: StopReason::ReentryNotConfirmed };
+            }
         }
     }
 }
@@ -1033,13 +1229,27 @@ mod tests {
         let cfg = LaneSwitchConfig::default();
         cfg.validate().unwrap();
         assert!(cfg.pivots());
-        // √((0.6095 + 0.06)² + (0.762 + 0.075)² − 0.375²) + 0.15 = 1.1541 m past the row end.
-        assert!((cfg.turn_excursion_m() - 1.15412).abs() < 1e-4, "{}", cfg.turn_excursion_m());
+        // The second pivot binds: 0.075 m lateral drift over the 1.5 m shift leaves the nearest row
+        // 0.3 m to the side, √(ρ² − 0.3²) = 1.0289 with ρ = 1.0717; plus 0.05 allowance, 0.05 margin
+        // and 0.05·(1.6 + ρ + 1.5) drift = 1.3376 m.
+        let reach = 0.6695f64.hypot(0.837);
+        let expected = (reach * reach - 0.09).sqrt() + 0.05 + 0.05 + 0.05 * (1.6 + reach + 1.5);
+        assert!((cfg.turn_excursion_m() - expected).abs() < 1e-9, "{}", cfg.turn_excursion_m());
+        assert!((expected - 1.3376).abs() < 1e-4, "{expected}");
+        // Two lanes over (3 m), still inside the 1.5 m headland.
+        let skip = LaneSwitchConfig { lane_step: 2, ..LaneSwitchConfig::default() };
+        skip.validate().unwrap();
+        assert!(skip.turn_excursion_m() > cfg.turn_excursion_m());
     }
 
     #[test]
     fn a_pivot_starts_where_the_swept_tyres_just_miss_the_nearest_plants() {
-        let cfg = LaneSwitchConfig { clearance_margin_m: 0.0, ..LaneSwitchConfig::default() };
+        let cfg = LaneSwitchConfig {
+            clearance_margin_m: 0.0,
+            row_end_allowance_m: 0.0,
+            odometry_drift_fraction: 0.0,
+            ..LaneSwitchConfig::default()
+        };
         // The farthest tyre-patch corner from base_link sweeps a circle; the nearest plants stand at
         // the row end on the lane's rows, half a row spacing to the side (arithmetic: 1e-12).
         let reach = (0.6095f64 + 0.06).hypot(0.762 + 0.075);
@@ -1047,17 +1257,61 @@ mod tests {
     }
 
     #[test]
-    fn arcs_reach_farther_into_the_headland_than_a_pivot() {
-        let pivot = LaneSwitchConfig::default().turn_excursion_m();
-        for r in [0.1, 0.3, 0.6, 0.75] {
-            let arcs = LaneSwitchConfig { turn_radius_m: r, ..LaneSwitchConfig::default() };
-            assert!(arcs.turn_excursion_m() > pivot + 0.05, "r {r}: {}", arcs.turn_excursion_m());
-        }
+    fn arcs_start_where_the_inner_tyres_swing_clear() {
         // r = 0.6: the inner tyre corner is √(0.6695² + 0.237²) = 0.7102 m from the turning centre,
         // whose nearest row is 0.225 m to its side; the outer rear tyre starts 0.6695 m back.
         let r06 = LaneSwitchConfig { turn_radius_m: 0.6, ..LaneSwitchConfig::default() };
-        let swing = (0.6695f64.hypot(0.237).powi(2) - 0.225f64.powi(2)).sqrt();
-        assert!((r06.turn_start_m() - (swing + 0.15)).abs() < 1e-9, "{}", r06.turn_start_m());
+        let reach = 0.6695f64.hypot(0.237);
+        let swing = (reach.powi(2) - 0.225f64.powi(2)).sqrt();
+        let budget = 0.05 + 0.05 + 0.05 * (1.6 + reach);
+        assert!((r06.turn_start_m() - (swing + budget)).abs() < 1e-9, "{}", r06.turn_start_m());
+        assert!((r06.turn_excursion_m() - (swing + budget + 0.6)).abs() < 1e-9);
+    }
+
+    /// A switcher that followed y = 0 from x = 1 and saw the canopy end 2 m ahead (x = 3), with the
+    /// row centroids `centroids` (`base_link` at x = 1), then drove on to `to_x` (or until it turns).
+    fn approach_end(cfg: LaneSwitchConfig, centroids: &[[f64; 2]], to_x: f64) -> (LaneSwitcher, f64) {
+        let mut sw = LaneSwitcher::new(cfg, ReferenceConfig::default()).unwrap();
+        let ended = |t: f64, ahead: f64| Detection { row_end_ahead_m: Some(ahead), ..rows(t, 0.0) };
+        let at = Pose2::new(1.0, 0.0, 0.0);
+        sw.update(&at, Some(&rows(0.0, 0.0)));
+        sw.update(&at, Some(&ended(0.1, 2.0)));
+        sw.observe_canopy(&at, &ended(0.1, 2.0), centroids);
+        let mut x = 1.0;
+        while !matches!(sw.mode(), Mode::Turning | Mode::Stopped { .. }) && x < to_x {
+            x += 0.01;
+            sw.update(&Pose2::new(x, 0.0, 0.0), None);
+        }
+        (sw, x)
+    }
+
+    #[test]
+    fn a_measured_row_end_past_the_lane_end_moves_the_first_pivot_out() {
+        // The left row's last centroid 0.2 m past the lane's end (a ragged end): the robot pivots
+        // 0.2 m farther out. A centroid more than a map bin past the canopy end is not believed. The
+        // rows not seen are taken to run as far as the farthest seen: the second pivot moves out too,
+        // past 1.5 m.
+        let cfg = LaneSwitchConfig { max_headland_excursion_m: 2.0, ..LaneSwitchConfig::default() };
+        let (sw, x) =
+            approach_end(cfg.clone(), &[[1.9, 0.37], [2.2, 0.38], [1.95, -0.37], [2.4, -0.36]], 6.0);
+        assert_eq!(sw.mode(), Mode::Turning);
+        let plan = sw.pivots().unwrap();
+        let square = cfg.pivot_plan(0.75, -1.0, |_| 0.0);
+        assert!((plan.first_m - (square.first_m + 0.2)).abs() < 1e-9, "{plan:?}");
+        assert!((x - 3.0 - plan.first_m).abs() <= 0.021, "turned at x {x}, plan {plan:?}");
+    }
+
+    #[test]
+    fn a_turn_the_measured_ends_push_past_the_headland_stops_instead() {
+        // The row beyond the lane's right row runs on 0.2 m: turning right, the second pivot would stand
+        // 1.54 m out, past the 1.5 m headland.
+        let (sw, _) = approach_end(LaneSwitchConfig::default(), &[[1.9, 0.37], [2.2, -1.12]], 3.1);
+        assert_eq!(sw.mode(), Mode::Stopped { reason: StopReason::NoRoomToTurn });
+        // With room for it, the same field is turned in.
+        let roomy = LaneSwitchConfig { max_headland_excursion_m: 2.0, ..LaneSwitchConfig::default() };
+        let (sw, _) = approach_end(roomy, &[[1.9, 0.37], [2.2, -1.12]], 6.0);
+        assert_eq!(sw.mode(), Mode::Turning);
+        assert!(sw.pivots().unwrap().second_m > 1.5, "{:?}", sw.pivots());
     }
 
     #[test]

@@ -7,6 +7,7 @@
 //! row end + odometry ──► headland turn (a Path in odom) ──┘
 //! ```
 
+pub mod headland;
 pub mod lane_switch;
 pub mod mpc;
 pub mod path;
