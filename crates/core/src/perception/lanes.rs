@@ -72,6 +72,19 @@ const MIN_PERIODICITY: f64 = 0.15;
 /// ground is taken to repeat only every second canopy period (see [`Lanes::search`]).
 const MIN_GROUND_POINTS: f64 = 200.0;
 const GROUND_HALF_PERIOD_RATIO: f64 = 0.5;
+/// Fewest pairs of canopy bins (2 cm each) for the envelope's autocorrelation at a lag to count: half a
+/// metre of canopy seen at both ends of the lag.
+const MIN_ENVELOPE_PAIRS: usize = 25;
+/// Largest relative difference between the canopy density's and the envelope's periods for the two to
+/// be taken as agreeing (see [`Lanes::search`]).
+const PERIODS_AGREE: f64 = 0.15;
+/// Share of the lateral bins between the outermost canopy that must hold canopy for the canopy to
+/// count as closed (measured on the soak's fields: 0.95-1.0 grown, 0.5-0.75 young).
+const CLOSED_CANOPY_SHARE: f64 = 0.85;
+/// Length (m) and number of the along-x slices of the envelope, from `X_LO_M` on; farther points go in
+/// the last slice.
+const ENVELOPE_SLICE_M: f64 = 0.5;
+const ENVELOPE_SLICES: usize = 16;
 /// Fewest returns in a lateral bin for its ground share to count.
 const MIN_BIN_RETURNS: f64 = 3.0;
 /// Fewest centroids from the current scan for it to count as seeing the rows.
@@ -199,6 +212,12 @@ pub(crate) struct Lanes {
     /// share of all returns; all returns.
     ground: Vec<f64>,
     returns: Vec<f64>,
+    /// Upper envelope of the start-up search: the highest canopy point per lateral bin, demeaned, and
+    /// whether the bin holds canopy at all.
+    envelope: Vec<f64>,
+    filled: Vec<bool>,
+    /// Highest canopy point per along-x slice and lateral bin, slice-major (0: none).
+    slices: Vec<f64>,
     /// Centroids of the fit, `[x, y, weight]` in `base_link`.
     local: Vec<[f64; 3]>,
     /// This scan's centroids, `[x, y, weight]` in `base_link`.
@@ -226,6 +245,9 @@ impl Lanes {
             hist: vec![0.0; HIST_BINS],
             ground: vec![0.0; HIST_BINS],
             returns: vec![0.0; HIST_BINS],
+            envelope: vec![0.0; HIST_BINS],
+            filled: vec![false; HIST_BINS],
+            slices: vec![0.0; ENVELOPE_SLICES * HIST_BINS],
             local: Vec::with_capacity(config.map_capacity + ROWS * x_bins),
             current: Vec::with_capacity(ROWS * x_bins),
             last_key: None,
@@ -358,16 +380,78 @@ impl Lanes {
         }
         let a = best.1;
         self.fill_hist(canopy, a, 1);
-        let s = spacing(&mut self.hist, config)?;
-        let ground_points = self.fill_ground(canopy, cropped, a);
-        // The lane centre lies between two canopy crests; of those gaps the one nearest the robot.
-        let o = Lane { o: circular_mean(&self.hist, s) + 0.5 * s, a, b: 0.0, s, crests: 1.0 }.normalised().o;
-        let (s, crests) = match ground_period(&self.ground, ground_points, s, config) {
-            Some(spacing_m) => (0.5 * spacing_m, 2.0),
-            None => (s, 1.0),
-        };
-        let lane = Lane { o, a, b: 0.0, s, crests }.normalised();
+        let density = spacing(&mut self.hist, config);
+        // Only a closed canopy has an envelope with one crest per row; an open one is canopy over the
+        // rows and nothing between, which the density already shows.
+        let crest = (self.fill_envelope(canopy, a) >= CLOSED_CANOPY_SHARE)
+            .then(|| envelope_spacing(&self.envelope, &self.filled, config))
+            .flatten();
+        let lane = match (density, crest) {
+            (Some(s), Some(e)) if (e - s).abs() > PERIODS_AGREE * s => {
+                // The density and the envelope disagree: the envelope's crests are the plants' tops,
+                // one per row, wherever the leaves spread (see the method's docs).
+                let o = circular_mean(&self.envelope, e) + 0.5 * e;
+                Lane { o, a, b: 0.0, s: e, crests: 1.0 }
+            }
+            (Some(s), _) => {
+                let ground_points = self.fill_ground(canopy, cropped, a);
+                // The lane centre lies between two canopy crests; of those gaps the one nearest the robot.
+                let o = Lane { o: circular_mean(&self.hist, s) + 0.5 * s, a, b: 0.0, s, crests: 1.0 }
+                    .normalised()
+                    .o;
+                match ground_period(&self.ground, ground_points, s, config) {
+                    Some(spacing_m) => Lane { o, a, b: 0.0, s: 0.5 * spacing_m, crests: 2.0 },
+                    None => Lane { o, a, b: 0.0, s, crests: 1.0 },
+                }
+            }
+            (None, Some(e)) => {
+                let o = circular_mean(&self.envelope, e) + 0.5 * e;
+                Lane { o, a, b: 0.0, s: e, crests: 1.0 }
+            }
+            (None, None) => return None,
+        }
+        .normalised();
         lane.is_sane(config).then_some(lane)
+    }
+
+    /// The canopy's upper envelope across the rows along heading slope `a`: per lateral bin, the mean
+    /// over [`ENVELOPE_SLICE_M`] slices along x of the highest canopy point in the slice, demeaned over
+    /// the bins that hold canopy (the others are 0 and not `filled`). Slices, not one maximum over the
+    /// whole view: a leaf arching nearly as high as the plant top somewhere along the row would
+    /// otherwise flatten it. Returns the share of the bins between the outermost canopy bins that
+    /// hold canopy: near 1 under a closed canopy.
+    fn fill_envelope(&mut self, canopy: &[[f32; 3]], a: f64) -> f64 {
+        self.slices.iter_mut().for_each(|h| *h = 0.0);
+        for p in canopy {
+            let slice = ((p[0] as f64 - X_LO_M) / ENVELOPE_SLICE_M).clamp(0.0, (ENVELOPE_SLICES - 1) as f64);
+            if let Some(i) = hist_index(p[1] as f64 - a * p[0] as f64)
+                && let Some(h) = self.slices.get_mut(slice as usize * HIST_BINS + i)
+            {
+                // Canopy heights are above the plane (> 0): 0 marks a cell without canopy.
+                *h = h.max(p[2] as f64);
+            }
+        }
+        let (mut sum, mut n) = (0.0, 0.0);
+        let (mut first, mut last) = (None, 0);
+        for (i, (h, f)) in self.envelope.iter_mut().zip(self.filled.iter_mut()).enumerate() {
+            let (top, cells) = (0..ENVELOPE_SLICES)
+                .filter_map(|k| self.slices.get(k * HIST_BINS + i))
+                .filter(|&&v| v > 0.0)
+                .fold((0.0, 0.0), |(t, c), v| (t + v, c + 1.0));
+            *f = cells > 0.0;
+            *h = if *f { top / cells } else { 0.0 };
+            if *f {
+                sum += *h;
+                n += 1.0;
+                first.get_or_insert(i);
+                last = i;
+            }
+        }
+        let mean = if n > 0.0 { sum / n } else { 0.0 };
+        for (h, f) in self.envelope.iter_mut().zip(&self.filled) {
+            *h = if *f { *h - mean } else { 0.0 };
+        }
+        first.map_or(0.0, |first| n / (last + 1 - first) as f64)
     }
 
     /// Lateral profile of the share of returns that reach the ground (cropped points that are not
@@ -626,24 +710,42 @@ impl Lanes {
     }
 }
 
-/// Row spacing from the autocorrelation of the lateral canopy histogram (demeaned in place): the
-/// strongest lag in the searched range, halved when its half is nearly as strong (a lag of two spacings
-/// also correlates).
+/// Row spacing from the autocorrelation of the lateral canopy histogram (demeaned in place); see
+/// [`peak_lag`].
 fn spacing(hist: &mut [f64], config: &DetectorConfig) -> Option<f64> {
     demean(hist);
-    let ac = |lag: usize| autocorrelation(hist, lag);
+    peak_lag(|lag| autocorrelation(hist, lag), config)
+}
+
+/// Row spacing from the autocorrelation of the canopy's upper envelope (see [`Lanes::fill_envelope`]):
+/// like [`spacing`], over the pairs of bins that both hold canopy.
+fn envelope_spacing(envelope: &[f64], filled: &[bool], config: &DetectorConfig) -> Option<f64> {
+    peak_lag(|lag| masked_autocorrelation(envelope, filled, lag), config)
+}
+
+/// The strongest lag of an autocorrelation `ac` (by bin) in the searched spacing range, m: halved when
+/// its half is nearly as strong (a lag of two spacings also correlates), refined by a parabola through
+/// the peak; `None` when the peak is weaker than [`MIN_PERIODICITY`] of `ac(0)`.
+fn peak_lag(ac: impl Fn(usize) -> f64, config: &DetectorConfig) -> Option<f64> {
     let energy = ac(0);
     if energy <= 0.0 {
         return None;
     }
     let lo = (config.spacing_min_m / HIST_BIN_M).ceil() as usize;
     let hi = ((config.spacing_max_m / HIST_BIN_M).floor() as usize).min(HIST_BINS / 2);
+    // Local maxima only: at the low end of the range a broad crest (a closed canopy, a smooth envelope)
+    // still correlates with itself, and that slope is not a period.
     let mut best = (f64::NEG_INFINITY, lo);
+    let (mut prev, mut v) = (ac(lo.saturating_sub(1)), ac(lo));
     for lag in lo..=hi {
-        let v = ac(lag);
-        if v > best.0 {
+        let next = ac(lag + 1);
+        if v > prev && v >= next && v > best.0 {
             best = (v, lag);
         }
+        (prev, v) = (v, next);
+    }
+    if best.0 == f64::NEG_INFINITY {
+        return None;
     }
     let half = best.1 / 2;
     if half >= lo {
@@ -700,6 +802,20 @@ fn autocorrelation(hist: &[f64], lag: usize) -> f64 {
     let Some(shifted) = hist.get(lag..) else { return 0.0 };
     let n = shifted.len().max(1) as f64;
     hist.iter().zip(shifted).map(|(a, b)| a * b).sum::<f64>() / n
+}
+
+/// Autocorrelation of a profile at `lag` bins over the pairs of bins that are both `filled`, per pair;
+/// 0 when fewer than [`MIN_ENVELOPE_PAIRS`] pairs overlap (too short a stretch to tell a period).
+fn masked_autocorrelation(profile: &[f64], filled: &[bool], lag: usize) -> f64 {
+    let (Some(shifted), Some(shifted_filled)) = (profile.get(lag..), filled.get(lag..)) else { return 0.0 };
+    let (mut sum, mut n) = (0.0, 0usize);
+    for ((a, b), (fa, fb)) in profile.iter().zip(shifted).zip(filled.iter().zip(shifted_filled)) {
+        if *fa && *fb {
+            sum += a * b;
+            n += 1;
+        }
+    }
+    if n < MIN_ENVELOPE_PAIRS { 0.0 } else { sum / n as f64 }
 }
 
 /// Lateral position (m) of the peak of a histogram's component with `period_m`, in `(-period_m/2,
@@ -802,6 +918,51 @@ mod tests {
             assert!((lane.spacing_m() - 0.75).abs() < 0.03, "scan {k}: {lane:?}");
             assert!((lane.o + y0).abs() < 0.03, "scan {k}: {lane:?}");
         }
+    }
+
+    /// One scan of a closed canopy seen from the lane centre: rows 0.75 m apart whose leaves crest a
+    /// quarter spacing either side of the row (dense, 0.25 m above the plane), under the plant tops
+    /// over the row (sparse, 0.32 m), with low leaves filling the rest (0.1 m), and no ground in view.
+    fn closed_canopy_scan() -> Vec<[f32; 3]> {
+        let mut canopy = Vec::new();
+        for i in 0..250 {
+            let x = 1.5 + 0.012 * i as f64;
+            for r in (-3..3).map(|k| (k as f64 + 0.5) * 0.75) {
+                for dy in [-0.1875, 0.1875] {
+                    for e in [-0.03, -0.01, 0.01, 0.03] {
+                        canopy.push([x as f32, (r + dy + e) as f32, 0.25]);
+                    }
+                }
+                canopy.push([x as f32, r as f32, 0.32]);
+                canopy.extend((0..38).map(|k| [x as f32, (r - 0.375 + 0.02 * k as f64) as f32, 0.1]));
+            }
+        }
+        canopy
+    }
+
+    #[test]
+    fn closed_canopy_spacing_follows_the_plant_tops() {
+        // The canopy density repeats every 0.375 m (its own autocorrelation says so, within 3 cm) and
+        // the ground cannot break the tie; the plant tops give the spacing within 3 cm and the lane
+        // centre within 3 cm.
+        let cfg = DetectorConfig::default();
+        let canopy = closed_canopy_scan();
+        let mut lanes = Lanes::new(&cfg);
+        lanes.fill_hist(&canopy, 0.0, 1);
+        let density = spacing(&mut lanes.hist, &cfg).unwrap();
+        assert!((density - 0.375).abs() < 0.03, "{density}");
+        let lane = lanes.search(&canopy, &canopy, &cfg).unwrap();
+        assert!((lane.spacing_m() - 0.75).abs() < 0.03, "{lane:?}");
+        assert!(lane.o.abs() < 0.03, "{lane:?}");
+    }
+
+    #[test]
+    fn a_broad_crest_is_not_a_period() {
+        // A profile that only falls off from lag 0 (one wide hump) has no local maximum in the searched
+        // range: no spacing.
+        let cfg = DetectorConfig::default();
+        let mut hist: Vec<f64> = (0..HIST_BINS).map(|i| (-(hist_centre(i) / 2.0).powi(2)).exp()).collect();
+        assert_eq!(spacing(&mut hist, &cfg), None);
     }
 
     #[test]
