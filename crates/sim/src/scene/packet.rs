@@ -6,8 +6,10 @@
 //! Seen from above, the rays of a packet fan out in a thin wedge from the sensor. The walk cuts the grid
 //! into strips one cell wide across the wedge's main axis (x or y, whichever the wedge runs closer to)
 //! and visits them outwards; in each strip it visits the cells between the wedge's two boundary rays.
-//! Every primitive listed in a visited cell at the packet's height and reaching into the wedge's width
-//! there is tested against every ray still searching, with the same arithmetic as [`Scene::cast`]. A ray
+//! Every primitive listed in a visited cell at the packet's height is tested against every ray still
+//! searching, with the same arithmetic as [`Scene::cast`], once per packet (a small table remembers the
+//! primitives tested: a leaf lies in several cells of the walk) and only if its hull reaches the
+//! packet's fan (the plane of the laser's rays and the side planes of the outermost two). A ray
 //! stops once its best hit lies before the next strip: a hit it has not found lies in a cell not yet
 //! visited, hence farther along the axis. So a packet returns what [`Scene::cast`] returns for each ray,
 //! bit for bit where the nearest hit is unique (the tests compare whole revolutions ray by ray). As rays
@@ -19,7 +21,7 @@
 //! `REACH_M` out along the axis (grazing side beams, whose wedge grows wide far out) continue alone from
 //! there.
 
-use super::{Class, Scene, Shape};
+use super::{Class, Hull, Scene, Shape};
 
 /// Rays per packet at most (the lanes of the per-primitive tests).
 pub(crate) const LANES: usize = 8;
@@ -32,6 +34,9 @@ const SLACK_M: f32 = 1e-3;
 const MIN_COS: f32 = 0.906;
 /// Rays whose horizontal component is below this (steeper than ~87°) are cast alone.
 const MIN_HORIZONTAL: f32 = 0.05;
+
+/// Entries of a packet's table of tested primitives.
+const SEEN: usize = 64;
 
 /// What a lane's ray has hit so far: a primitive's index, or one of these.
 const WIN_NONE: u32 = u32::MAX;
@@ -63,6 +68,11 @@ struct Lanes {
     ray: [usize; LANES],
     /// Lanes the primitive tests cover: all, or the first half once every searching ray is there.
     width: usize,
+    /// The planes round the searching rays.
+    fan: Fan,
+    /// The primitives tested last, direct-mapped by index: a primitive listed in several cells of the
+    /// walk is tested once (testing it again could not find a nearer hit).
+    seen: [u32; SEEN],
 }
 
 impl Lanes {
@@ -87,6 +97,8 @@ impl Lanes {
             ray
         },
         width: LANES,
+        fan: Fan::OPEN,
+        seen: [u32::MAX; SEEN],
     };
 
     #[inline]
@@ -148,6 +160,24 @@ impl Lanes {
         self.drift.swap(i, j);
         self.descent.swap(i, j);
         self.ray.swap(i, j);
+    }
+
+    /// Computes the planes round the searching rays. They stay valid as rays stop (the planes of
+    /// fewer rays would be tighter, but recomputing them costs more than the tests they save).
+    fn refan(&mut self) {
+        let (mut first, mut last) = (None::<usize>, None::<usize>);
+        for k in (0..LANES).filter(|&k| self.searching(k)) {
+            if first.is_none_or(|f| self.drift[k] < self.drift[f]) {
+                first = Some(k);
+            }
+            if last.is_none_or(|l| self.drift[k] > self.drift[l]) {
+                last = Some(k);
+            }
+        }
+        self.fan = match (first, last) {
+            (Some(f), Some(l)) => Fan::of(self, f, l),
+            _ => Fan::OPEN,
+        };
     }
 
     /// The searching rays' extreme drifts and descents: `(left, right, steep, flat)`; `None` when no
@@ -214,6 +244,86 @@ impl Lanes {
             self.settle();
         }
     }
+}
+
+/// Three planes through the sensor that bound the searching rays of a packet up to a distance: the
+/// fan's own plane (the rays of one laser at neighbouring azimuths lie on a cone, within `m_margin` of
+/// the plane through the outermost two) and a plane along each outermost ray that the others lie on
+/// the inner side of. A primitive whose hull lies wholly outside one of them meets no searching ray, so
+/// the exact tests on the lanes are skipped. With the table of tested primitives, a grown-corn
+/// revolution runs 14.5k 8-lane tests instead of 47k (5k of them hit).
+#[derive(Debug, Clone, Copy)]
+struct Fan {
+    /// Unit normal of the fan's plane; the rays lie within `m_margin` of it.
+    m: [f32; 3],
+    m_margin: f32,
+    /// Inward unit normals of the side planes (zero when there is one ray) and how far the rays may
+    /// reach outside them.
+    n1: [f32; 3],
+    n1_margin: f32,
+    n2: [f32; 3],
+    n2_margin: f32,
+}
+
+impl Fan {
+    /// A fan that rejects nothing.
+    const OPEN: Self =
+        Self { m: [0.0; 3], m_margin: 0.0, n1: [0.0; 3], n1_margin: 0.0, n2: [0.0; 3], n2_margin: 0.0 };
+
+    /// The planes of the searching rays of `lanes` (the outermost two are `first` and `last`), valid
+    /// for hits nearer than each lane's `best`.
+    fn of(lanes: &Lanes, first: usize, last: usize) -> Self {
+        let d = |k: usize| [lanes.dx[k], lanes.dy[k], lanes.dz[k]];
+        let (df, dl) = (d(first), d(last));
+        let (m, n1, n2) = match unit(cross3(df, dl)) {
+            Some(m) => match (unit(cross3(m, df)), unit(cross3(dl, m))) {
+                (Some(n1), Some(n2)) => (m, n1, n2),
+                _ => return Self::OPEN,
+            },
+            // One ray (or two the same): the vertical plane along it, no sides.
+            None => match unit(cross3(df, [0.0, 0.0, 1.0])) {
+                Some(m) => (m, [0.0; 3], [0.0; 3]),
+                None => return Self::OPEN,
+            },
+        };
+        // The farthest a searching ray may still hit, and how far off each plane a ray gets per metre.
+        let (mut reach, mut off_m, mut off_1, mut off_2) = (0f32, 0f32, 0f32, 0f32);
+        for k in (0..LANES).filter(|&k| lanes.searching(k)) {
+            let dk = d(k);
+            reach = reach.max(lanes.best[k]);
+            off_m = off_m.max(dot3(m, dk).abs());
+            off_1 = off_1.max(-dot3(n1, dk));
+            off_2 = off_2.max(-dot3(n2, dk));
+        }
+        // A millimetre covers the f32 rounding of these tests and of the exact ones.
+        let margin = |off: f32| reach * (off + 1e-6) + SLACK_M;
+        Self { m, m_margin: margin(off_m), n1, n1_margin: margin(off_1), n2, n2_margin: margin(off_2) }
+    }
+
+    /// Whether the hull `h` may meet a ray of the fan from `o`.
+    #[inline(always)]
+    fn meets(&self, o: [f32; 3], h: &Hull) -> bool {
+        let v = [h.c[0] - o[0], h.c[1] - o[1], h.c[2] - o[2]];
+        let extent = |n: [f32; 3]| dot3(n, h.a).abs() + dot3(n, h.b).abs() + h.rho;
+        dot3(self.m, v).abs() <= extent(self.m) + self.m_margin
+            && dot3(self.n1, v) + extent(self.n1) >= -self.n1_margin
+            && dot3(self.n2, v) + extent(self.n2) >= -self.n2_margin
+    }
+}
+
+#[inline(always)]
+fn dot3(a: [f32; 3], b: [f32; 3]) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn cross3(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
+/// `a / |a|`, or `None` when `a` is too short to have a direction.
+fn unit(a: [f32; 3]) -> Option<[f32; 3]> {
+    let n = dot3(a, a).sqrt();
+    (n > 1e-6).then(|| a.map(|c| c / n))
 }
 
 /// How a ray enters a packet.
@@ -351,6 +461,7 @@ impl Scene {
             lanes.descent[k] = lanes.dz[k] / lanes.along[k];
         }
         lanes.settle();
+        lanes.refan();
         Some(Walk { a, b, sign })
     }
 
@@ -394,11 +505,9 @@ impl Scene {
             let t1 = index(o[b] + hi + SLACK_M, b).min(n[b] - 1);
             // The rays descend: across the strip they lie between their heights at its edges.
             let z = (o[2] + steep * d_far, o[2] + flat * d_near);
-            // A primitive can meet a ray in this strip only if it reaches into the wedge's width here.
-            let across = (b, o[b] + lo - SLACK_M, o[b] + hi + SLACK_M);
             for t in t0..=t1 {
                 let (i, j) = if a == 0 { (s, t) } else { (t, s) };
-                self.visit(o, lanes, (j * self.nx + i) as usize, z, across);
+                self.visit(o, lanes, (j * self.nx + i) as usize, z);
             }
             s += step;
         }
@@ -406,16 +515,9 @@ impl Scene {
     }
 
     /// Tests the primitives of cell `c` that reach into the rays' height range `(z_low, z_high)` over
-    /// it and into their range `(lo, hi)` along axis `b` against every searching ray.
+    /// it and into the packet's fan against every searching ray.
     #[inline]
-    fn visit(
-        &self,
-        o: [f32; 3],
-        lanes: &mut Lanes,
-        c: usize,
-        (z_low, z_high): (f32, f32),
-        (b, lo, hi): (usize, f32, f32),
-    ) {
+    fn visit(&self, o: [f32; 3], lanes: &mut Lanes, c: usize, (z_low, z_high): (f32, f32)) {
         match self.heights.get(c) {
             Some(&h) if z_low <= h => {}
             _ => return,
@@ -429,8 +531,15 @@ impl Scene {
             if r.z_min > z_high {
                 continue;
             }
-            match self.footprints.get(r.prim as usize) {
-                Some(f) if f[b] <= hi && f[b + 2] >= lo => {}
+            let slot = (r.prim as usize) % SEEN;
+            if lanes.seen.get(slot) == Some(&r.prim) {
+                continue;
+            }
+            if let Some(s) = lanes.seen.get_mut(slot) {
+                *s = r.prim;
+            }
+            match self.hulls.get(r.prim as usize) {
+                Some(h) if lanes.fan.meets(o, h) => {}
                 _ => continue,
             }
             let Some(p) = prims.get(r.prim as usize) else { continue };
