@@ -56,9 +56,12 @@ pub(crate) enum Shape {
 /// its axis, a weed clump a sphere.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Hull {
+    /// Centre.
     pub c: [f32; 3],
+    /// Half-axes (zero where the shape has fewer).
     pub a: [f32; 3],
     pub b: [f32; 3],
+    /// Radius swept round the parallelogram.
     pub rho: f32,
 }
 
