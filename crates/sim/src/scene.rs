@@ -50,21 +50,6 @@ pub(crate) enum Shape {
     Spheroid { c: [f32; 3], inv_r: f32, inv_rz: f32 },
 }
 
-/// A convex hull of a primitive for quick rejection: the points `c + s·a + r·b + q` with `|s|, |r| ≤ 1`
-/// and `|q| ≤ rho` (field frame, m). Its extent along a unit vector `v` about `v·c` is
-/// `|v·a| + |v·b| + rho`: a flat patch is exactly its parallelogram (`rho = 0`), a stalk a capsule round
-/// its axis, a weed clump a sphere.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Hull {
-    /// Centre.
-    pub c: [f32; 3],
-    /// Half-axes (zero where the shape has fewer).
-    pub a: [f32; 3],
-    pub b: [f32; 3],
-    /// Radius swept round the parallelogram.
-    pub rho: f32,
-}
-
 /// A primitive and its class.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Prim {
@@ -132,20 +117,6 @@ impl Prim {
             Shape::Spheroid { c, inv_r, inv_rz } => {
                 let (r, rz) = (1.0 / inv_r, 1.0 / inv_rz);
                 [c[0] - r, c[1] - r, c[2] - rz, c[0] + r, c[1] + r, c[2] + rz]
-            }
-        }
-    }
-
-    /// The primitive's [`Hull`].
-    fn hull(&self) -> Hull {
-        match self.shape {
-            Shape::Patch { o, ua, wa, .. } => Hull { c: o, a: undual(ua), b: undual(wa), rho: 0.0 },
-            Shape::Cylinder { cx, cy, r2, z0, z1 } => {
-                let hz = 0.5 * (z1 - z0);
-                Hull { c: [cx, cy, z0 + hz], a: [0.0, 0.0, hz], b: [0.0; 3], rho: r2.sqrt() }
-            }
-            Shape::Spheroid { c, inv_r, inv_rz } => {
-                Hull { c, a: [0.0; 3], b: [0.0; 3], rho: (1.0 / inv_r).max(1.0 / inv_rz) }
             }
         }
     }
@@ -311,9 +282,9 @@ struct CellInfo {
 #[derive(Debug, Clone)]
 pub(crate) struct Scene {
     prims: Vec<Prim>,
-    /// Per primitive, its hull: beam packets skip a primitive that does not reach their fan of rays
-    /// without loading it.
-    hulls: Vec<Hull>,
+    /// Per primitive, its horizontal bounds `[x_min, y_min, x_max, y_max]` (field frame, m): beam
+    /// packets skip a primitive that lies beside their wedge without loading it.
+    footprints: Vec<[f32; 4]>,
     relief: Relief,
     /// Upper bound of the relief's slope |∇h| (numerical, with margin), for sphere tracing.
     relief_slope: f64,
@@ -446,10 +417,10 @@ impl Scene {
                 }
             }
         }
-        let hulls = prims.iter().map(Prim::hull).collect();
+        let footprints = prims.iter().map(|p| p.bounds()).map(|b| [b[0], b[1], b[3], b[4]]).collect();
         Self {
             prims,
-            hulls,
+            footprints,
             relief,
             relief_slope,
             x0,

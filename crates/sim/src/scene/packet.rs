@@ -6,10 +6,10 @@
 //! Seen from above, the rays of a packet fan out in a thin wedge from the sensor. The walk cuts the grid
 //! into strips one cell wide across the wedge's main axis (x or y, whichever the wedge runs closer to)
 //! and visits them outwards; in each strip it visits the cells between the wedge's two boundary rays.
-//! Every primitive listed in a visited cell at the packet's height is tested against every ray still
-//! searching, with the same arithmetic as [`Scene::cast`], once per packet (a small table remembers the
-//! primitives tested: a leaf lies in several cells of the walk) and only if its hull reaches the
-//! packet's fan (the plane of the laser's rays and the side planes of the outermost two). A ray
+//! Every primitive listed in a visited cell at the packet's height and reaching into the wedge's width
+//! there is tested against every ray still searching, with the same arithmetic as [`Scene::cast`], once
+//! per packet (a small table remembers the primitives tested: a leaf lies in several cells of the
+//! walk, and testing it again could not find a nearer hit). A ray
 //! stops once its best hit lies before the next strip: a hit it has not found lies in a cell not yet
 //! visited, hence farther along the axis. So a packet returns what [`Scene::cast`] returns for each ray,
 //! bit for bit where the nearest hit is unique (the tests compare whole revolutions ray by ray). As rays
@@ -21,7 +21,7 @@
 //! `REACH_M` out along the axis (grazing side beams, whose wedge grows wide far out) continue alone from
 //! there.
 
-use super::{Class, Hull, Scene, Shape};
+use super::{Class, Scene, Shape};
 
 /// Rays per packet at most (the lanes of the per-primitive tests).
 pub(crate) const LANES: usize = 8;
@@ -68,8 +68,6 @@ struct Lanes {
     ray: [usize; LANES],
     /// Lanes the primitive tests cover: all, or the first half once every searching ray is there.
     width: usize,
-    /// The planes round the searching rays.
-    fan: Fan,
     /// The primitives tested last, direct-mapped by index: a primitive listed in several cells of the
     /// walk is tested once (testing it again could not find a nearer hit).
     seen: [u32; SEEN],
@@ -97,7 +95,6 @@ impl Lanes {
             ray
         },
         width: LANES,
-        fan: Fan::OPEN,
         seen: [u32::MAX; SEEN],
     };
 
@@ -160,24 +157,6 @@ impl Lanes {
         self.drift.swap(i, j);
         self.descent.swap(i, j);
         self.ray.swap(i, j);
-    }
-
-    /// Computes the planes round the searching rays. They stay valid as rays stop (the planes of
-    /// fewer rays would be tighter, but recomputing them costs more than the tests they save).
-    fn refan(&mut self) {
-        let (mut first, mut last) = (None::<usize>, None::<usize>);
-        for k in (0..LANES).filter(|&k| self.searching(k)) {
-            if first.is_none_or(|f| self.drift[k] < self.drift[f]) {
-                first = Some(k);
-            }
-            if last.is_none_or(|l| self.drift[k] > self.drift[l]) {
-                last = Some(k);
-            }
-        }
-        self.fan = match (first, last) {
-            (Some(f), Some(l)) => Fan::of(self, f, l),
-            _ => Fan::OPEN,
-        };
     }
 
     /// The searching rays' extreme drifts and descents: `(left, right, steep, flat)`; `None` when no
@@ -248,97 +227,6 @@ impl Lanes {
             self.settle();
         }
     }
-}
-
-/// Three planes through the sensor that bound the searching rays of a packet up to a distance: the
-/// fan's own plane (the rays of one laser at neighbouring azimuths lie on a cone, within `m_margin` of
-/// the plane through the outermost two) and a plane along each outermost ray that the others lie on
-/// the inner side of. A primitive whose hull lies wholly outside one of them meets no searching ray, so
-/// the exact tests on the lanes are skipped. With the table of tested primitives, a grown-corn
-/// revolution runs 14.5k 8-lane tests instead of 47k (5k of them hit).
-#[derive(Debug, Clone, Copy)]
-struct Fan {
-    /// The planes' unit normals, one lane per plane (0: the fan's plane, 1 and 2: the side planes,
-    /// 3: unused), component by component, so that a hull is tested against all three at once.
-    axes: [[f32; 4]; 3],
-    /// `+1` for the fan's plane, whose both sides count, `-1` for the side planes, which only bound
-    /// from their inner side: a hull whose signed distance `p ± e` from plane `k` has
-    /// `max(side[k]·p, -p) - e > margin[k]` lies outside.
-    side: [f32; 4],
-    /// How far the rays may reach outside each plane, m (`+∞`: the plane rejects nothing).
-    margin: [f32; 4],
-}
-
-impl Fan {
-    /// A fan that rejects nothing.
-    const OPEN: Self = Self { axes: [[0.0; 4]; 3], side: [1.0; 4], margin: [f32::INFINITY; 4] };
-
-    /// The planes of the searching rays of `lanes` (the outermost two are `first` and `last`), valid
-    /// for hits nearer than each lane's `best`.
-    fn of(lanes: &Lanes, first: usize, last: usize) -> Self {
-        let d = |k: usize| [lanes.dx[k], lanes.dy[k], lanes.dz[k]];
-        let (df, dl) = (d(first), d(last));
-        let (m, sides) = match unit(cross3(df, dl)) {
-            Some(m) => match (unit(cross3(m, df)), unit(cross3(dl, m))) {
-                (Some(n1), Some(n2)) => (m, Some((n1, n2))),
-                _ => return Self::OPEN,
-            },
-            // One ray (or two the same): the vertical plane along it, no sides.
-            None => match unit(cross3(df, [0.0, 0.0, 1.0])) {
-                Some(m) => (m, None),
-                None => return Self::OPEN,
-            },
-        };
-        let (n1, n2) = sides.unwrap_or(([0.0; 3], [0.0; 3]));
-        // The farthest a searching ray may still hit, and how far off each plane a ray gets per metre.
-        let (mut reach, mut off) = (0f32, [0f32; 3]);
-        for k in (0..LANES).filter(|&k| lanes.searching(k)) {
-            let dk = d(k);
-            reach = reach.max(lanes.best[k]);
-            off = [off[0].max(dot3(m, dk).abs()), off[1].max(-dot3(n1, dk)), off[2].max(-dot3(n2, dk))];
-        }
-        // A millimetre covers the f32 rounding of these tests and of the exact ones.
-        let margin = |off: f32| reach * (off + 1e-6) + SLACK_M;
-        let side_margin = |off: f32| if sides.is_some() { margin(off) } else { f32::INFINITY };
-        Self {
-            axes: [0, 1, 2].map(|i| [m[i], n1[i], n2[i], 0.0]),
-            side: [1.0, -1.0, -1.0, 1.0],
-            margin: [margin(off[0]), side_margin(off[1]), side_margin(off[2]), f32::INFINITY],
-        }
-    }
-
-    /// Whether the hull `h` may meet a ray of the fan from `o`.
-    #[inline(always)]
-    fn meets(&self, o: [f32; 3], h: &Hull) -> bool {
-        let v = [h.c[0] - o[0], h.c[1] - o[1], h.c[2] - o[2]];
-        let [x, y, z] = &self.axes;
-        let mut outside = 0u32;
-        // Plain lanes of four: the compiler turns this into a few packed instructions.
-        for k in 0..4 {
-            let p = x[k] * v[0] + y[k] * v[1] + z[k] * v[2];
-            let ea = x[k] * h.a[0] + y[k] * h.a[1] + z[k] * h.a[2];
-            let eb = x[k] * h.b[0] + y[k] * h.b[1] + z[k] * h.b[2];
-            let (sp, np) = (self.side[k] * p, -p);
-            let far = if sp > np { sp } else { np };
-            outside |= (far - (ea.abs() + eb.abs() + h.rho) > self.margin[k]) as u32;
-        }
-        outside == 0
-    }
-}
-
-#[inline(always)]
-fn dot3(a: [f32; 3], b: [f32; 3]) -> f32 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn cross3(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-}
-
-/// `a / |a|`, or `None` when `a` is too short to have a direction.
-fn unit(a: [f32; 3]) -> Option<[f32; 3]> {
-    let n = dot3(a, a).sqrt();
-    (n > 1e-6).then(|| a.map(|c| c / n))
 }
 
 /// How a ray enters a packet.
@@ -487,7 +375,6 @@ impl Scene {
             lanes.descent[k] = lanes.dz[k] / lanes.along[k];
         }
         lanes.settle();
-        lanes.refan();
         Some(Walk { a, b, sign })
     }
 
@@ -531,9 +418,11 @@ impl Scene {
             let t1 = index(o[b] + hi + SLACK_M, b).min(n[b] - 1);
             // The rays descend: across the strip they lie between their heights at its edges.
             let z = (o[2] + steep * d_far, o[2] + flat * d_near);
+            // A primitive can meet a ray in this strip only if it reaches into the wedge's width here.
+            let across = (b, o[b] + lo - SLACK_M, o[b] + hi + SLACK_M);
             for t in t0..=t1 {
                 let (i, j) = if a == 0 { (s, t) } else { (t, s) };
-                self.visit(o, lanes, (j * self.nx + i) as usize, z);
+                self.visit(o, lanes, (j * self.nx + i) as usize, z, across);
             }
             s += step;
         }
@@ -543,7 +432,14 @@ impl Scene {
     /// Tests the primitives of cell `c` that reach into the rays' height range `(z_low, z_high)` over
     /// it and into the packet's fan against every searching ray.
     #[inline]
-    fn visit(&self, o: [f32; 3], lanes: &mut Lanes, c: usize, (z_low, z_high): (f32, f32)) {
+    fn visit(
+        &self,
+        o: [f32; 3],
+        lanes: &mut Lanes,
+        c: usize,
+        (z_low, z_high): (f32, f32),
+        (b, lo, hi): (usize, f32, f32),
+    ) {
         match self.heights.get(c) {
             Some(&h) if z_low <= h => {}
             _ => return,
@@ -557,16 +453,16 @@ impl Scene {
             if r.z_min > z_high {
                 continue;
             }
+            match self.footprints.get(r.prim as usize) {
+                Some(f) if f[b] <= hi && f[b + 2] >= lo => {}
+                _ => continue,
+            }
             let slot = (r.prim as usize) % SEEN;
             if lanes.seen.get(slot) == Some(&r.prim) {
                 continue;
             }
             if let Some(s) = lanes.seen.get_mut(slot) {
                 *s = r.prim;
-            }
-            match self.hulls.get(r.prim as usize) {
-                Some(h) if lanes.fan.meets(o, h) => {}
-                _ => continue,
             }
             let Some(p) = prims.get(r.prim as usize) else { continue };
             match p.shape {
@@ -623,70 +519,6 @@ mod tests {
             }
         }
         dirs
-    }
-
-    /// The planes round a packet never reject a primitive that one of its rays hits, and they do
-    /// reject most of the primitives near the fan that none hits.
-    #[test]
-    fn the_fan_rejects_only_primitives_no_ray_hits() {
-        use crate::scene::Prim;
-        use crate::terrain::Relief;
-        use rand::{RngExt, SeedableRng};
-        let scene = Scene::build(vec![], Relief::flat(), -50.0, 50.0, -50.0, 50.0, 0.5);
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
-        let (mut hit, mut rejected, mut missed) = (0, 0, 0);
-        for _ in 0..200 {
-            // Eight rays of one laser at consecutive 0.2° azimuths, tilted down, any heading.
-            let (el, az0) = (rng.random_range(-0.8..-0.05f32), rng.random_range(0.0..std::f32::consts::TAU));
-            let o = [rng.random_range(-5.0..5.0f32), rng.random_range(-5.0..5.0f32), 1.5];
-            let mut lanes = Lanes::IDLE;
-            let (mut units, mut mean) = ([[0f32; 2]; LANES], [0f32; 2]);
-            for (k, unit) in units.iter_mut().enumerate() {
-                let az = az0 - k as f32 * 0.2f32.to_radians();
-                let d = [el.cos() * az.cos(), el.cos() * az.sin(), el.sin()];
-                (lanes.dx[k], lanes.dy[k], lanes.dz[k]) = (d[0], d[1], d[2]);
-                (lanes.lo[k], lanes.best[k]) = (0.0, rng.random_range(2.0..30.0));
-                *unit = [az.cos(), az.sin()];
-                mean = [mean[0] + unit[0], mean[1] + unit[1]];
-            }
-            let n = (mean[0] * mean[0] + mean[1] * mean[1]).sqrt();
-            assert!(scene.plan(&mut lanes, &units, [mean[0] / n, mean[1] / n]).is_some());
-            for _ in 0..40 {
-                // A primitive within 15 cm of a point on one of the rays.
-                let k = rng.random_range(0..LANES);
-                let t = rng.random_range(0.5..lanes.best[k]) as f64;
-                let c = [0, 1, 2].map(|i| {
-                    let d = [lanes.dx[k], lanes.dy[k], lanes.dz[k]][i] as f64;
-                    o[i] as f64 + t * d + rng.random_range(-0.15..0.15)
-                });
-                let prim = match rng.random_range(0..4) {
-                    0 => Prim::cylinder(c[0], c[1], 0.01, c[2] - 0.2, c[2] + 0.2, Class::Crop),
-                    1 => Prim::spheroid(c, 0.05, 0.02, Class::Weed),
-                    e => {
-                        let u = [
-                            rng.random_range(-0.1..0.1),
-                            rng.random_range(-0.1..0.1),
-                            rng.random_range(-0.1..0.1),
-                        ];
-                        // w ⟂ u.
-                        let w = [-u[1] * 0.5, u[0] * 0.5, 0.0];
-                        Prim::patch(c, u, w, e == 3, Class::Crop)
-                    }
-                };
-                let hits = (0..LANES).any(|k| {
-                    prim.intersect(o, [lanes.dx[k], lanes.dy[k], lanes.dz[k]], lanes.lo[k], lanes.best[k])
-                        .is_some()
-                });
-                let meets = lanes.fan.meets(o, &prim.hull());
-                assert!(meets || !hits, "the fan rejects a primitive a ray hits: {prim:?}");
-                hit += usize::from(hits);
-                rejected += usize::from(!meets);
-                missed += usize::from(!hits);
-            }
-        }
-        // The rays must hit some primitives, and the fan must reject most of those they miss.
-        assert!(hit > 500, "{hit} hit");
-        assert!(rejected * 2 > missed, "{rejected} of {missed} missed primitives rejected");
     }
 
     /// Every ray of whole revolutions cast in packets and alone: same hits (within 1 mm) and classes.
