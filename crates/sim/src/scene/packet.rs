@@ -430,7 +430,8 @@ impl Scene {
     }
 
     /// Tests the primitives of cell `c` that reach into the rays' height range `(z_low, z_high)` over
-    /// it and into the packet's fan against every searching ray.
+    /// it and into their range `(lo, hi)` along axis `b` against every searching ray, each primitive
+    /// once per packet.
     #[inline]
     fn visit(
         &self,
