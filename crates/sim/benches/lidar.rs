@@ -43,6 +43,36 @@
 //! hair nearer), 2 of 423k points of 30 young-corn revolutions moved, by 0.4 mm, 5 in young soybean,
 //! by up to 1.1 mm; same classes and counts. Still 3-4x short of the 1 ms target: the 8-lane patch test
 //! (~165 instructions) runs ~23 times per packet: a third of the instructions.
+//!
+//! Table of tested primitives (branch `simperf3`): a packet tests each primitive once (a 64-entry
+//! direct-mapped table; a leaf lies in several cells of a walk, and half the 8-lane patch tests were
+//! repeats that cannot find a nearer hit), packets whose rays all rise return before any lane is set
+//! up, and the spread of the lanes is branch-free. Instructions per revolution (callgrind as above, 3
+//! revolutions) before -> after: young corn 20.4M -> 17.1M, grown corn 26.3M -> 20.7M, young soybean
+//! 23.2M -> 19.2M, grown soybean 30.5M -> 23.9M, curved corn 20.8M -> 17.6M; data-cache misses
+//! unchanged (callgrind `--cache-sim=yes --LL=2097152,16,64`, 3 grown-corn revolutions: D1 262k, LL
+//! 116k either way). Scans bit for bit the same (scan hashes of all five scenarios). CPU times were not
+//! measurable to better than ±20 % that day (load average 10-11 on the 2 cores): grown corn 3.8-4.6
+//! ms before, 4.0-5.0 ms after, young corn 3.0-3.4 / 2.8-3.0 ms.
+//!
+//! Tried on that branch and dropped (scans bit for bit the same in every case):
+//! - planes round each packet's fan (the laser's cone plane and the side planes of its outermost
+//!   rays) that reject a primitive whose hull (40 bytes a primitive) no lane can reach: 8-lane tests
+//!   47k -> 14.5k per grown-corn revolution (5k of them hit), but the test cost as many instructions
+//!   as it saved and the hull array added 10 % L2 misses;
+//! - rasterising each frame (180 columns x 16 lasers) in the sensor's (column, laser) grid: cells in
+//!   square rings round the sensor within the frame's sector, each primitive's hull projected to a
+//!   rectangle of rays (polynomial arctangent, bounds widened past its error), exact tests on those
+//!   rays only, occlusion tiles of 8 columns: 44M instructions per grown-corn revolution, twice the
+//!   packets. 23k primitives within 6 m are projected per revolution (~400 instructions each) and a
+//!   closed canopy cannot be culled cell by cell (each cell's column spans the whole canopy depth, so
+//!   some ray over it is always still searching);
+//! - 16 lanes: -3 % instructions; reach 4 m / 8 m: +7 % / +1.5 %; cells of 0.07 m / 0.15 m: +5 % /
+//!   +1 %.
+//!
+//! The 1 ms target needs 5x fewer instructions (~4M a revolution, ~300 per ray that hits); the
+//! cost is spread over the walk (strips, cells, ~70 cell references a packet), 8-lane tests and the
+//! rays left to `Scene::cast_from` past the reach (1.9k a revolution, ~800 instructions each).
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use croprow_core::Pose2;

@@ -7,7 +7,9 @@
 //! into strips one cell wide across the wedge's main axis (x or y, whichever the wedge runs closer to)
 //! and visits them outwards; in each strip it visits the cells between the wedge's two boundary rays.
 //! Every primitive listed in a visited cell at the packet's height and reaching into the wedge's width
-//! there is tested against every ray still searching, with the same arithmetic as [`Scene::cast`]. A ray
+//! there is tested against every ray still searching, with the same arithmetic as [`Scene::cast`], once
+//! per packet (a small table remembers the primitives tested: a leaf lies in several cells of the
+//! walk, and testing it again could not find a nearer hit). A ray
 //! stops once its best hit lies before the next strip: a hit it has not found lies in a cell not yet
 //! visited, hence farther along the axis. So a packet returns what [`Scene::cast`] returns for each ray,
 //! bit for bit where the nearest hit is unique (the tests compare whole revolutions ray by ray). As rays
@@ -32,6 +34,9 @@ const SLACK_M: f32 = 1e-3;
 const MIN_COS: f32 = 0.906;
 /// Rays whose horizontal component is below this (steeper than ~87°) are cast alone.
 const MIN_HORIZONTAL: f32 = 0.05;
+
+/// Entries of a packet's table of tested primitives.
+const SEEN: usize = 64;
 
 /// What a lane's ray has hit so far: a primitive's index, or one of these.
 const WIN_NONE: u32 = u32::MAX;
@@ -63,6 +68,9 @@ struct Lanes {
     ray: [usize; LANES],
     /// Lanes the primitive tests cover: all, or the first half once every searching ray is there.
     width: usize,
+    /// The primitives tested last, direct-mapped by index: a primitive listed in several cells of the
+    /// walk is tested once (testing it again could not find a nearer hit).
+    seen: [u32; SEEN],
 }
 
 impl Lanes {
@@ -87,6 +95,7 @@ impl Lanes {
             ray
         },
         width: LANES,
+        seen: [u32::MAX; SEEN],
     };
 
     #[inline]
@@ -153,15 +162,19 @@ impl Lanes {
     /// The searching rays' extreme drifts and descents: `(left, right, steep, flat)`; `None` when no
     /// ray searches.
     fn spread(&self) -> Option<(f32, f32, f32, f32)> {
-        let mut b = (f32::INFINITY, f32::NEG_INFINITY, f32::INFINITY, f32::NEG_INFINITY);
-        for k in (0..LANES).filter(|&k| self.searching(k)) {
-            b = (
-                b.0.min(self.drift[k]),
-                b.1.max(self.drift[k]),
-                b.2.min(self.descent[k]),
-                b.3.max(self.descent[k]),
-            );
+        // Stopped lanes take neutral values, so that the loop has no branch and vectorises.
+        let (mut l, mut r, mut st, mut fl) =
+            ([f32::INFINITY; LANES], [f32::NEG_INFINITY; LANES], [0f32; LANES], [0f32; LANES]);
+        for k in 0..LANES {
+            let on = self.lo[k] < f32::INFINITY;
+            l[k] = if on { self.drift[k] } else { f32::INFINITY };
+            r[k] = if on { self.drift[k] } else { f32::NEG_INFINITY };
+            st[k] = if on { self.descent[k] } else { f32::INFINITY };
+            fl[k] = if on { self.descent[k] } else { f32::NEG_INFINITY };
         }
+        let min = |a: [f32; LANES]| a.iter().fold(f32::INFINITY, |m, &v| if v < m { v } else { m });
+        let max = |a: [f32; LANES]| a.iter().fold(f32::NEG_INFINITY, |m, &v| if v > m { v } else { m });
+        let b = (min(l), max(r), min(st), max(fl));
         (b.0 <= b.1).then_some(b)
     }
 
@@ -254,15 +267,26 @@ impl Scene {
         t_max: f32,
         out: &mut [Option<(f32, Class)>],
     ) {
-        let mut lanes = Lanes::IDLE;
-        let mut units = [[0f32; 2]; LANES];
-        let mut mean = [0f32; 2];
-        for (k, (&d, slot)) in dirs.iter().zip(out.iter_mut()).take(LANES).enumerate() {
+        // Most packets behind the sensor rise: settle them before setting up any lanes.
+        let mut starts = [const { None }; LANES];
+        for ((&d, slot), start) in dirs.iter().zip(out.iter_mut()).zip(&mut starts) {
             *slot = None;
             match self.packet_ray(o, d, t_max) {
                 Start::Done(hit) => *slot = hit,
                 Start::Alone => *slot = self.cast(o, d, t_max),
-                Start::Search { t_lo, t_hi, ground, horizontal } => {
+                search => *start = Some(search),
+            }
+        }
+        if starts.iter().all(Option::is_none) {
+            return;
+        }
+        let mut lanes = Lanes::IDLE;
+        let mut units = [[0f32; 2]; LANES];
+        let mut mean = [0f32; 2];
+        for (k, (&d, start)) in dirs.iter().zip(&starts).enumerate() {
+            match *start {
+                None | Some(Start::Done(_) | Start::Alone) => {}
+                Some(Start::Search { t_lo, t_hi, ground, horizontal }) => {
                     let u = [d[0] / horizontal, d[1] / horizontal];
                     mean = [mean[0] + u[0], mean[1] + u[1]];
                     units[k] = u;
@@ -406,7 +430,8 @@ impl Scene {
     }
 
     /// Tests the primitives of cell `c` that reach into the rays' height range `(z_low, z_high)` over
-    /// it and into their range `(lo, hi)` along axis `b` against every searching ray.
+    /// it and into their range `(lo, hi)` along axis `b` against every searching ray, each primitive
+    /// once per packet.
     #[inline]
     fn visit(
         &self,
@@ -432,6 +457,13 @@ impl Scene {
             match self.footprints.get(r.prim as usize) {
                 Some(f) if f[b] <= hi && f[b + 2] >= lo => {}
                 _ => continue,
+            }
+            let slot = (r.prim as usize) % SEEN;
+            if lanes.seen.get(slot) == Some(&r.prim) {
+                continue;
+            }
+            if let Some(s) = lanes.seen.get_mut(slot) {
+                *s = r.prim;
             }
             let Some(p) = prims.get(r.prim as usize) else { continue };
             match p.shape {
