@@ -18,7 +18,8 @@
 //! sideways by `δ` over a baseline `Δs` means the robot slid by `−δ`: the slide estimate moves by
 //! `−gain · δ / Δs`; a heading that turned by `δψ` over `Δt` (net of the rows' own curvature) moves
 //! the yaw-rate estimate by `−gain · δψ / Δt` (off by default, see `drift.yaw_gain`). It is an
-//! integral controller on the rows' apparent motion: once the estimates are right the rows stand still in `nav` and the map is consistent again.
+//! integral controller on the rows' apparent motion: once the estimates are right the rows stand
+//! still in `nav` and the map is consistent again.
 //!
 //! ```
 //! use croprow_core::odometry::{Drift, DriftConfig};
