@@ -6,6 +6,12 @@
 //! path and returns `(v, ω)`. Scans come at 10 Hz; steps without a scan reuse the last path, carried
 //! by odometry, so the controller may run faster than the LiDAR.
 //!
+//! Every stage works in the `nav` frame: the odometry pose with the drift the wheels and the gyro
+//! cannot see (a sideways slide on wet soil) removed, as learned from the rows by
+//! [`crate::odometry::Drift`]. Until it has learned anything, `nav` is `odom`; the detector's map and
+//! the paths ([`LaneSwitcher::path`]) live in `nav`, which departs from `odom` by the slide integrated
+//! so far (centimetres over a slip patch).
+//!
 //! ```
 //! use croprow_core::navigator::{NavInput, Navigator, NavigatorConfig};
 //! use croprow_core::{Mount, Pose2, Twist2};
@@ -246,9 +252,9 @@ impl Navigator {
     }
 
     /// Feeds the drift estimator the centre line of a detection the robot follows: both rows tracked,
-    /// at the lane's spacing, no row end before the anchor, and within `lane_switch.max_line_jump_m`
-    /// of the path followed at the robot (a line of another lane teaches nothing). Anything else, or
-    /// any other mode, restarts its comparison.
+    /// at the lane's spacing, no row end before the anchor, within `lane_switch.max_line_jump_m` of
+    /// the path followed at the robot (a line of another lane teaches nothing). Anything else, or any
+    /// other mode, restarts its comparison.
     fn learn_drift(&mut self, mode: Mode, pose: &Pose2, detection: Option<&Detection>) {
         if mode != Mode::Following {
             self.drift.forget_line();
