@@ -6,6 +6,12 @@
 //! path and returns `(v, ω)`. Scans come at 10 Hz; steps without a scan reuse the last path, carried
 //! by odometry, so the controller may run faster than the LiDAR.
 //!
+//! Every stage works in the `nav` frame: the odometry pose with the drift the wheels and the gyro
+//! cannot see (a sideways slide on wet soil) removed, as learned from the rows by
+//! [`crate::odometry::Drift`]. Until it has learned anything, `nav` is `odom`; the detector's map and
+//! the paths ([`LaneSwitcher::path`]) live in `nav`, which departs from `odom` by the slide integrated
+//! so far (centimetres over a slip patch).
+//!
 //! ```
 //! use croprow_core::navigator::{NavInput, Navigator, NavigatorConfig};
 //! use croprow_core::{Mount, Pose2, Twist2};
@@ -22,10 +28,10 @@ use serde::{Deserialize, Serialize};
 use crate::control::lane_switch::{LaneSwitchConfig, LaneSwitcher, Mode, StopReason};
 use crate::control::mpc::{Mpc, MpcConfig, SolveStatus};
 use crate::control::path::Frenet;
-use crate::control::reference::ReferenceConfig;
+use crate::control::reference::{ReferenceConfig, centre_line};
 use crate::error::{ConfigError, check_range};
 use crate::geometry::{Mount, Pose2, Twist2};
-use crate::odometry::EkfConfig;
+use crate::odometry::{Drift, DriftConfig, EkfConfig};
 use crate::perception::{Detection, DetectorConfig, RowDetector, RowStatus, Scan};
 
 /// The whole navigation configuration: one section per stage, with the same dotted names in config
@@ -46,6 +52,8 @@ pub struct NavigatorConfig {
     pub ekf: EkfConfig,
     /// Checks of each step's input.
     pub input: InputConfig,
+    /// The odometry's unsensed drift, learned from the rows and removed (see [`Drift`]).
+    pub drift: DriftConfig,
 }
 
 /// Checks of the navigator's input (section `input`).
@@ -83,6 +91,7 @@ impl NavigatorConfig {
         self.lane_switch.validate()?;
         self.ekf.validate()?;
         self.input.validate()?;
+        self.drift.validate()?;
         Ok(())
     }
 }
@@ -148,6 +157,7 @@ pub struct Navigator {
     detector: RowDetector,
     switcher: LaneSwitcher,
     mpc: Mpc,
+    drift: Drift,
     last_cmd: Twist2,
     last_stamp_s: Option<f64>,
 }
@@ -160,6 +170,7 @@ impl Navigator {
             detector: RowDetector::new(cfg.detector.clone())?,
             switcher: LaneSwitcher::new(cfg.lane_switch.clone(), cfg.reference.clone())?,
             mpc: Mpc::new(cfg.mpc.clone())?,
+            drift: Drift::new(cfg.drift.clone())?,
             last_cmd: Twist2::ZERO,
             last_stamp_s: None,
             cfg,
@@ -186,11 +197,18 @@ impl Navigator {
         &self.mpc
     }
 
+    /// The drift estimator. The detector's map and the lane switcher's paths live in its `nav` frame:
+    /// `odom` with the estimated drift removed.
+    pub fn drift(&self) -> &Drift {
+        &self.drift
+    }
+
     /// Leaves a safety stop: the detector and the controller start over, the lane count is kept.
     pub fn resume(&mut self) {
         self.switcher.resume();
         self.detector.reset();
         self.mpc.reset();
+        self.drift.forget_line();
         self.last_cmd = Twist2::ZERO;
     }
 
@@ -203,18 +221,19 @@ impl Navigator {
             return self.refuse(input.stamp_s, fault);
         }
         let tolerance = self.cfg.input.scan_stamp_tolerance_s;
+        let pose = self.drift.correct(input.stamp_s, input.odom);
         let detection = input.scan.map(|scan| {
             if (scan.stamp_s - input.stamp_s).abs() <= tolerance {
-                self.detector.detect(scan, input.odom, input.mount)
+                self.detector.detect(scan, pose, input.mount)
             } else {
                 Detection::empty(scan.stamp_s, RowStatus::InvalidInput)
             }
         });
         if let Some(d) = detection.filter(|d| d.status != RowStatus::InvalidInput) {
-            // The detector's mapped row centroids tell the lane switcher where each row ends.
-            self.switcher.observe_canopy(&input.odom, &d, self.detector.centroids());
+            // The detector's mapped row centroids (in `nav`) tell the lane switcher where each row ends.
+            self.switcher.observe_canopy(&pose, &d, self.detector.centroids());
         }
-        self.advance(input.stamp_s, input.odom, detection, input.mpc_budget)
+        self.advance(input.stamp_s, pose, detection, input.mpc_budget)
     }
 
     /// One control step with a detection made elsewhere (a recorded one, or a test's): the same as
@@ -232,7 +251,39 @@ impl Navigator {
         if let Some(fault) = self.check(&input) {
             return self.refuse(stamp_s, fault);
         }
-        self.advance(stamp_s, odom, detection, mpc_budget)
+        let pose = self.drift.correct(stamp_s, odom);
+        self.advance(stamp_s, pose, detection, mpc_budget)
+    }
+
+    /// Feeds the drift estimator the centre line of a detection the robot follows: both rows tracked,
+    /// at the lane's spacing, no row end before the anchor, within `lane_switch.max_line_jump_m` of
+    /// the path followed at the robot (a line of another lane teaches nothing). Anything else, or any
+    /// other mode, restarts its comparison.
+    fn learn_drift(&mut self, mode: Mode, pose: &Pose2, detection: Option<&Detection>) {
+        if mode != Mode::Following {
+            self.drift.forget_line();
+            return;
+        }
+        let Some(d) = detection else { return };
+        let ls = &self.cfg.lane_switch;
+        let anchor_m = self.drift.config().anchor_m;
+        let usable = d.status == RowStatus::Tracking
+            && d.left.is_some()
+            && d.right.is_some()
+            && d.row_spacing_m
+                .is_some_and(|s| (s - ls.row_spacing_m).abs() <= ls.spacing_tolerance * ls.row_spacing_m)
+            && d.row_end_ahead_m.is_none_or(|end| end > anchor_m + 1.0);
+        let line = centre_line(&self.cfg.reference, d).filter(|_| usable);
+        let on_path = line.filter(|line| {
+            self.switcher.path().is_some_and(|path| {
+                let at = pose.compose(&line.pose());
+                path.project(&at, self.switcher.progress_m()).lateral_m.abs() <= ls.max_line_jump_m
+            })
+        });
+        match on_path {
+            Some(line) => self.drift.observe(d.stamp_s, pose, line.pose(), line.curvature_per_m),
+            None => self.drift.forget_line(),
+        }
     }
 
     fn check(&self, input: &NavInput<'_>) -> Option<InputFault> {
@@ -277,6 +328,7 @@ impl Navigator {
         if guidance.reset_detector {
             self.detector.reset();
         }
+        self.learn_drift(guidance.mode, &odom, detection.as_ref());
         let mut out = NavOutput {
             stamp_s,
             cmd: Twist2::ZERO,

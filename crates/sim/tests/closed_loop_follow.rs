@@ -85,6 +85,46 @@ fn recovers_from_a_start_0_3_m_and_8_degrees_off_within_3_m() {
     assert!(m.crop_contacts <= 12, "{m:?}");
 }
 
+/// Row lines (at `(k + ½)·spacing` from the lane centre line, k = -3..=2) that lie under a tyre patch
+/// of a robot at lateral offset `y_m` (left of the centre line) and heading `psi_rad` (to the rows),
+/// as `(tyre index, row offset)`, from the robot and field geometry of scenario `name`.
+fn rows_under_tyres(name: &str, y_m: f64, psi_rad: f64) -> Vec<(usize, f64)> {
+    let s = Scenario::builtin(name).unwrap();
+    let spacing = s.field.row_spacing_m;
+    let (half_w, half_l) = (0.5 * s.robot.tire_width_m, 0.5 * s.robot.contact_length_m);
+    let (sin, cos) = psi_rad.sin_cos();
+    let mut under = Vec::new();
+    for (i, (x, y)) in s.robot.wheel_positions().into_iter().enumerate() {
+        let centre = y_m + x * sin + y * cos;
+        // Lateral half-extent of a rectangle `2 half_l` long, `2 half_w` wide, turned by ψ.
+        let reach = half_w * cos.abs() + half_l * sin.abs();
+        for k in -3..=2 {
+            let row = (f64::from(k) + 0.5) * spacing;
+            if (row - centre).abs() <= reach {
+                under.push((i, row));
+            }
+        }
+    }
+    under
+}
+
+#[test]
+fn the_recovery_start_already_has_a_tyre_over_a_row() {
+    // Zero contacts is impossible from this start, whatever the controller does: at 0.3 m left of the
+    // centre line a tyre patch already covers a row line at t = 0, for either start heading. With
+    // the default geometry (0.75 m spacing, wheels at ±0.6095 m and ±0.762 m, patches 0.12 × 0.15 m):
+    // heading +8° puts the front-left tyre (centre 0.3 + 0.085 + 0.755 = 1.140 m, reaching 0.083 m
+    // to either side) on the row at 1.125 m and the front-right one (−0.370 m) on the lane's right
+    // row; heading −8° does the same with the two rear tyres.
+    let s = Scenario::builtin("recovery").unwrap();
+    let (y, psi) = (s.start.lateral_offset_m, s.start.heading_offset_deg.to_radians());
+    assert!((y - 0.3).abs() < 1e-12 && (psi.to_degrees() - 8.0).abs() < 1e-12, "{:?}", s.start);
+    assert_eq!(rows_under_tyres("recovery", y, psi), vec![(0, 1.125), (1, -0.375)]);
+    assert_eq!(rows_under_tyres("recovery", y, -psi), vec![(2, 1.125), (3, -0.375)]);
+    // The check itself: centred and aligned, every tyre runs in its inter-row.
+    assert!(rows_under_tyres("recovery", 0.0, 0.0).is_empty());
+}
+
 #[test]
 fn rows_vanishing_mid_row_stop_the_robot() {
     // A dead LiDAR 8 m into a 20 m row: the navigator must stop, not drive on blind.

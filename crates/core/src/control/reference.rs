@@ -96,47 +96,12 @@ impl Reference {
 
     /// The centre line a detection implies, in `base_link`, or `None` without a usable row.
     pub fn centre_line(&self, detection: &Detection) -> Option<CentreLine> {
-        let spacing = self.spacing_m(detection);
-        let usable = |r: &Option<RowEstimate>| {
-            r.filter(|r| {
-                r.offset_m.is_finite()
-                    && r.heading_rad.is_finite()
-                    && r.curvature_per_m.is_finite()
-                    && r.heading_rad.abs() < 1.2
-            })
-        };
-        let shifted = |r: &RowEstimate, side: f64| {
-            // The centre is parallel to the row at half a spacing: its offset at x = 0 grows by 1/cos.
-            CentreLine {
-                offset_m: r.offset_m - side * 0.5 * spacing / r.heading_rad.cos(),
-                heading_rad: r.heading_rad,
-                curvature_per_m: r.curvature_per_m,
-            }
-        };
-        let line = match (usable(&detection.left), usable(&detection.right)) {
-            (Some(l), Some(r)) => CentreLine {
-                offset_m: 0.5 * (l.offset_m + r.offset_m),
-                heading_rad: 0.5 * (l.heading_rad + r.heading_rad),
-                curvature_per_m: 0.5 * (l.curvature_per_m + r.curvature_per_m),
-            },
-            (Some(l), None) => shifted(&l, 1.0),
-            (None, Some(r)) => shifted(&r, -1.0),
-            (None, None) => return None,
-        };
-        let k = if self.cfg.use_curvature {
-            line.curvature_per_m.clamp(-self.cfg.max_curvature_per_m, self.cfg.max_curvature_per_m)
-        } else {
-            0.0
-        };
-        Some(CentreLine { curvature_per_m: k, ..line })
+        centre_line(&self.cfg, detection)
     }
 
     /// The row spacing of a detection, or the fallback, m.
     fn spacing_m(&self, detection: &Detection) -> f64 {
-        detection
-            .row_spacing_m
-            .filter(|s| s.is_finite() && *s > 0.0)
-            .unwrap_or(self.cfg.fallback_row_spacing_m)
+        spacing_m(&self.cfg, detection)
     }
 
     /// Updates the path from a detection and the `odom` pose at its scan stamp. Returns false (and
@@ -191,6 +156,49 @@ impl Reference {
         self.path.clear();
         self.stamp_s = None;
     }
+}
+
+/// The centre line a detection implies under `cfg`, in `base_link`, or `None` without a usable row
+/// (see the module docs).
+pub fn centre_line(cfg: &ReferenceConfig, detection: &Detection) -> Option<CentreLine> {
+    let spacing = spacing_m(cfg, detection);
+    let usable = |r: &Option<RowEstimate>| {
+        r.filter(|r| {
+            r.offset_m.is_finite()
+                && r.heading_rad.is_finite()
+                && r.curvature_per_m.is_finite()
+                && r.heading_rad.abs() < 1.2
+        })
+    };
+    let shifted = |r: &RowEstimate, side: f64| {
+        // The centre is parallel to the row at half a spacing: its offset at x = 0 grows by 1/cos.
+        CentreLine {
+            offset_m: r.offset_m - side * 0.5 * spacing / r.heading_rad.cos(),
+            heading_rad: r.heading_rad,
+            curvature_per_m: r.curvature_per_m,
+        }
+    };
+    let line = match (usable(&detection.left), usable(&detection.right)) {
+        (Some(l), Some(r)) => CentreLine {
+            offset_m: 0.5 * (l.offset_m + r.offset_m),
+            heading_rad: 0.5 * (l.heading_rad + r.heading_rad),
+            curvature_per_m: 0.5 * (l.curvature_per_m + r.curvature_per_m),
+        },
+        (Some(l), None) => shifted(&l, 1.0),
+        (None, Some(r)) => shifted(&r, -1.0),
+        (None, None) => return None,
+    };
+    let k = if cfg.use_curvature {
+        line.curvature_per_m.clamp(-cfg.max_curvature_per_m, cfg.max_curvature_per_m)
+    } else {
+        0.0
+    };
+    Some(CentreLine { curvature_per_m: k, ..line })
+}
+
+/// The row spacing of a detection, or `cfg`'s fallback, m.
+fn spacing_m(cfg: &ReferenceConfig, detection: &Detection) -> f64 {
+    detection.row_spacing_m.filter(|s| s.is_finite() && *s > 0.0).unwrap_or(cfg.fallback_row_spacing_m)
 }
 
 #[cfg(test)]

@@ -9,7 +9,12 @@
 //! ekf.update_wheel(0.02, 0.5, 0.0).unwrap();
 //! assert!(ekf.pose().x > 0.0);
 //! ```
+//!
+//! What the wheels and the gyro cannot see (a sideways slide, a gyro bias step) is estimated from the
+//! crop rows by [`Drift`] and removed in the navigator's own frame, `nav`.
 
+mod drift;
 mod ekf;
 
+pub use drift::{Drift, DriftConfig};
 pub use ekf::{Ekf, EkfConfig, EkfError};
