@@ -1,5 +1,5 @@
 //! The node's configuration tree: the navigator's sections (`detector`, `reference`, `mpc`,
-//! `lane_switch`), the EKF (`ekf`), the fallback sensor mount (`mount`) and the node's own wiring
+//! `lane_switch`, `input`, `drift`), the EKF (`ekf`), the fallback sensor mount (`mount`) and the node's own wiring
 //! (`node`: topics, frames, watchdog). One dotted name per leaf, the same in a TOML file, in
 //! `--set key=value` and as a ROS 2 parameter (`detector.range_m`, `mpc.horizon_steps`,
 //! `node.stale_after_s`).
@@ -17,7 +17,8 @@ use croprow_core::control::lane_switch::LaneSwitchConfig;
 use croprow_core::control::mpc::MpcConfig;
 use croprow_core::control::reference::ReferenceConfig;
 use croprow_core::error::{ConfigError, check_range};
-use croprow_core::odometry::EkfConfig;
+use croprow_core::navigator::InputConfig;
+use croprow_core::odometry::{DriftConfig, EkfConfig};
 use croprow_core::{DetectorConfig, Mount, NavigatorConfig};
 use croprow_io::overrides;
 use serde::{Deserialize, Serialize};
@@ -150,6 +151,10 @@ pub struct NodeConfig {
     pub lane_switch: LaneSwitchConfig,
     /// The EKF, used when `node.odometry = "wheel_imu"`.
     pub ekf: EkfConfig,
+    /// Checks of each step's input (scan stamp tolerance).
+    pub input: InputConfig,
+    /// The odometry's unsensed drift learned from the rows (off by default).
+    pub drift: DriftConfig,
     /// `base_link -> sensor` used until `/tf_static` gives one for the cloud's frame. Default: the
     /// paper's mount (Sec. IV).
     pub mount: Mount,
@@ -180,7 +185,8 @@ impl NodeConfig {
             mpc: self.mpc.clone(),
             lane_switch: self.lane_switch.clone(),
             ekf: self.ekf.clone(),
-            ..NavigatorConfig::default()
+            input: self.input.clone(),
+            drift: self.drift.clone(),
         }
     }
 
@@ -302,6 +308,8 @@ mod tests {
             "mpc.horizon_steps",
             "lane_switch.lanes",
             "ekf.max_gap_s",
+            "input.scan_stamp_tolerance_s",
+            "drift.enabled",
             "mount.z_m",
             "node.stale_after_s",
         ] {

@@ -50,7 +50,8 @@ fn a_slide_on_a_curved_lane_does_not_bend_the_rows_onto_the_tyres() {
 
 #[test]
 fn a_gyro_bias_step_does_not_lead_the_robot_onto_a_row() {
-    // Grown corn, an unlearned gyro bias step of 0.028 rad/s at x 2.6 m (and scans stamped 0.25 s
-    // off later): the map turned under the detector and 16 plants were run over.
-    safe_with_drift_estimate(&first_lane(180, "grown corn 11.4 m x 9 rows 0.80 m apart"));
+    // Grown corn on a curved lane with relief, an unlearned gyro bias step of 0.025 rad/s at x 7.7 m:
+    // the map turned under the detector and 11 plants were run over. (Seed 180, the first case kept
+    // here, is no longer acquired since the closed-canopy spacing search changed; see soak_acquire.)
+    safe_with_drift_estimate(&first_lane(725, "grown corn 13.7 m x 9 rows 0.77 m apart, curve 0.68 m"));
 }
