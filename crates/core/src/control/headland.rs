@@ -144,6 +144,38 @@ pub fn plan_pivots(
     PivotPlan { first_m, second_m }
 }
 
+/// Counts the rows `q` in `rows` (the rows `(q + ½)·spacing_m` to the left of the lane's centre line,
+/// as in [`RowEnds::observe`]) that hold a point farther than `past_m` along the lane past its row end.
+/// `end` is a pose on the centre line at the row end, heading out of the field (`odom`); `points` are
+/// in `odom`, m. Crop standing on several rows past a measured row end means the "end" was a gap in
+/// the rows, not the headland: one row's worth (a weed on a row line, a stray return) is not enough.
+/// Non-finite points and points between rows are skipped; at most 32 rows are counted.
+pub fn rows_past_end(
+    spacing_m: f64,
+    end: &Pose2,
+    past_m: f64,
+    rows: std::ops::RangeInclusive<i32>,
+    points: impl Iterator<Item = (f64, f64)>,
+) -> u32 {
+    if !spacing_m.is_finite() || spacing_m <= 0.0 || !past_m.is_finite() {
+        return 0;
+    }
+    let first = *rows.start();
+    let mut seen = 0u32;
+    for (x, y) in points.filter(|(x, y)| x.is_finite() && y.is_finite()) {
+        let (along, lateral) = end.inverse_transform_point(x, y);
+        let row = lateral / spacing_m - 0.5;
+        let q = row.round();
+        if along <= past_m || (row - q).abs() > ROW_GATE || !rows.contains(&(q as i32)) {
+            continue;
+        }
+        if let Some(bit) = u32::try_from(q as i64 - i64::from(first)).ok().and_then(|i| 1u32.checked_shl(i)) {
+            seen |= bit;
+        }
+    }
+    seen.count_ones()
+}
+
 /// The farthest row centroid seen on each row about a lane's centre line, in `odom`. A fixed array:
 /// nothing is allocated after construction.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -327,5 +359,22 @@ mod tests {
         assert!((q3 - 0.1 * 3.5 * 0.5).abs() < 1e-9, "{q3}");
         assert!((ends.end_or_fit_m(0, &end, 0.5) - 0.025).abs() < 1e-12);
         assert_eq!(RowEnds::default().end_or_fit_m(2, &end, 0.5), 0.0);
+    }
+
+    #[test]
+    fn rows_past_an_end_count_each_row_once_and_only_past_the_margin() {
+        // The end at x = 4 heading +x; rows 0.75 m apart at ±0.375, ±1.125.
+        let end = Pose2::new(4.0, 0.0, 0.0);
+        let points =
+            [(5.0, 0.37), (5.5, 0.38), (5.0, -0.4), (4.4, 1.12), (5.0, 0.75), (f64::NAN, 0.37), (6.0, 3.0)];
+        // Row 0 twice (counted once), row -1; row 1 is not past 0.5 m; 0.75 is between rows; 3.0 is
+        // outside the rows counted.
+        assert_eq!(rows_past_end(0.75, &end, 0.5, -2..=1, points.into_iter()), 2);
+        assert_eq!(rows_past_end(0.75, &end, 0.3, -2..=1, points.into_iter()), 3);
+        assert_eq!(rows_past_end(0.75, &end, 0.5, 0..=0, points.into_iter()), 1);
+        // Behind the end, or with an absurd spacing, nothing counts.
+        let reversed = Pose2::new(4.0, 0.0, std::f64::consts::PI);
+        assert_eq!(rows_past_end(0.75, &reversed, 0.5, -2..=1, points.into_iter()), 0);
+        assert_eq!(rows_past_end(f64::NAN, &end, 0.5, -2..=1, points.into_iter()), 0);
     }
 }

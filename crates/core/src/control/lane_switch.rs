@@ -60,7 +60,7 @@ use std::f64::consts::{FRAC_PI_2, PI};
 
 use serde::{Deserialize, Serialize};
 
-use crate::control::headland::{Clearance, Footprint, PivotPlan, RowEnds, plan_pivots};
+use crate::control::headland::{Clearance, Footprint, PivotPlan, RowEnds, plan_pivots, rows_past_end};
 use crate::control::path::{Path, Segment};
 use crate::control::reference::{Reference, ReferenceConfig};
 use crate::error::{ConfigError, check_range};
@@ -73,6 +73,12 @@ const LINE_CHECK_AHEAD_M: f64 = 1.5;
 /// Length of the detector's map bins, m: a centroid up to one bin past the reported canopy end still
 /// belongs to the last plants.
 const ROW_END_BIN_M: f64 = 0.25;
+/// The rows whose crop past a row end makes it a gap: the lane's two and their outer neighbours, the
+/// rows the detector ends a lane on (`q` as in [`RowEnds`]).
+const GAP_ROWS: std::ops::RangeInclusive<i32> = -2..=1;
+/// Largest heading change at the first pivot, rad, up to which crop past the row end still stops the
+/// turn: beyond it the scan looks across the headland, not along the lane.
+const GAP_PIVOT_RAD: f64 = 0.5;
 /// Weight of each scan's row spacing in the running mean the turns use: about the last 20 scans
 /// (2 m at cruise speed).
 const SPACING_GAIN: f64 = 0.05;
@@ -195,6 +201,19 @@ pub struct LaneSwitchConfig {
     /// line followed before the stop (the robot stood still: the lane cannot have changed). 0 latches
     /// every stop until [`LaneSwitcher::resume`]. Default 5 (half a second of scans at 10 Hz).
     pub resume_confirmations: u32,
+    /// Distance past the canopy end of the row end believed (one map bin past it, where the last
+    /// plants' centroids may still lie) beyond which crop on the lane's rows means the "end" was a
+    /// gap in the rows, m. Default 0.5: the detector calls an end only after 1 m of empty ground
+    /// (`detector.end_empty_m`), and the headland beyond a true end holds no crop.
+    pub gap_margin_m: f64,
+    /// Rows, of the lane's two and their outer neighbours (the rows the detector ends a lane on),
+    /// that must hold crop past the row end for it to count as a gap. Default 2: a weed on one row
+    /// line or a stray return is not a row running on.
+    pub gap_rows: u32,
+    /// Consecutive scans, each tracking the rows without confirming the end, that must show crop
+    /// past the row end before it is dropped as a gap (see the module docs); 0 makes the first end
+    /// seen final. Default 3 (0.3 s of scans at 10 Hz).
+    pub gap_confirmations: u32,
 }
 
 impl Default for LaneSwitchConfig {
@@ -232,6 +251,9 @@ impl Default for LaneSwitchConfig {
             spacing_tolerance: 0.25,
             max_line_jump_m: 0.25,
             resume_confirmations: 5,
+            gap_margin_m: 0.5,
+            gap_rows: 2,
+            gap_confirmations: 3,
         }
     }
 }
@@ -272,6 +294,14 @@ impl LaneSwitchConfig {
         check_range("lane_switch.spacing_tolerance", self.spacing_tolerance, 0.01, 10.0)?;
         check_range("lane_switch.max_line_jump_m", self.max_line_jump_m, 0.01, 10.0)?;
         check_range("lane_switch.resume_confirmations", f64::from(self.resume_confirmations), 0.0, 1000.0)?;
+        check_range("lane_switch.gap_margin_m", self.gap_margin_m, 0.0, 10.0)?;
+        check_range(
+            "lane_switch.gap_rows",
+            f64::from(self.gap_rows),
+            1.0,
+            f64::from(GAP_ROWS.end() - GAP_ROWS.start() + 1),
+        )?;
+        check_range("lane_switch.gap_confirmations", f64::from(self.gap_confirmations), 0.0, 1000.0)?;
         let shift = self.shift_m();
         check_range("lane_switch.turn_radius_m", self.turn_radius_m, 0.0, 0.5 * shift)?;
         let reach = self.turn_excursion_m();
@@ -407,6 +437,10 @@ pub enum StopReason {
     /// The measured row ends leave no room for a contact-free turn within
     /// `max_headland_excursion_m`.
     NoRoomToTurn,
+    /// Crop appeared past the row end once the robot had started to pivot there: the end was a gap in
+    /// the rows. The robot stands in the gap, off the lane's heading; a person decides (the same lane
+    /// again after [`LaneSwitcher::resume`], or the turn).
+    CropPastRowEnd,
 }
 
 impl StopReason {
@@ -427,6 +461,7 @@ impl StopReason {
             StopReason::InvalidOdometry => "invalid_odometry",
             StopReason::SolverFailed => "solver_failed",
             StopReason::NoRoomToTurn => "no_room_to_turn",
+            StopReason::CropPastRowEnd => "crop_past_row_end",
         }
     }
 }
@@ -526,6 +561,8 @@ pub struct LaneSwitcher {
     entry_row_end_m: f64,
     /// True once a detection agreed with the planned lane and the entry follows the rows seen.
     entry_anchored: bool,
+    /// Consecutive scans that showed crop past the row end (see `gap_confirmations`).
+    crop_past_end: u32,
 }
 
 impl LaneSwitcher {
@@ -555,6 +592,7 @@ impl LaneSwitcher {
             pivots: None,
             entry_row_end_m: 0.0,
             entry_anchored: false,
+            crop_past_end: 0,
             cfg,
         })
     }
@@ -615,8 +653,15 @@ impl LaneSwitcher {
     /// in view from about 3 m before it), and only centroids up to one `ROW_END_BIN_M` past that end:
     /// beyond it they are not plants of the lane's rows (ground seen through a mis-pitched sensor,
     /// clutter in the headland).
+    ///
+    /// Before the turn and at the start of its first pivot, the same centroids tell whether crop stands
+    /// past the row end being driven to (see `gap_confirmations` and the module docs).
     pub fn observe_canopy(&mut self, odom: &Pose2, detection: &Detection, centroids: &[[f64; 2]]) {
-        if self.mode != Mode::Following || !odom.is_finite() {
+        if !odom.is_finite() {
+            return;
+        }
+        self.observe_past_end(odom, detection, centroids);
+        if self.mode != Mode::Following {
             return;
         }
         let Some(reach) = detection.row_end_ahead_m.filter(|a| a.is_finite()).map(|a| a + ROW_END_BIN_M)
@@ -631,6 +676,57 @@ impl LaneSwitcher {
             let f = path.project(&Pose2::new(x, y, 0.0), hint);
             (f.s_m, f.lateral_m)
         });
+    }
+
+    /// Counts the consecutive scans that show crop past the row end being driven to, or pivoted at:
+    /// the detector tracks the rows, its own row end (if any) lies past that end too, and the mapped
+    /// centroids stand on `gap_rows` of the lane's rows and their outer neighbours more than
+    /// `gap_margin_m` past the canopy end. Any other scan restarts the count.
+    fn observe_past_end(&mut self, odom: &Pose2, detection: &Detection, centroids: &[[f64; 2]]) {
+        let end = match self.mode {
+            Mode::Following | Mode::ClearingRowEnd => self.row_end,
+            Mode::Turning if self.at_first_pivot(odom) => self.exit_line,
+            _ => None,
+        };
+        let Some(end) = end.filter(|_| detection.status == RowStatus::Tracking) else {
+            self.crop_past_end = 0;
+            return;
+        };
+        // The row end was moved back from the detector's canopy end by `end_trim_m`; the last plants'
+        // centroids may lie up to a map bin past that canopy end.
+        let past_m = self.end_trim_m + ROW_END_BIN_M + self.cfg.gap_margin_m;
+        let confirmed = detection
+            .row_end_ahead_m
+            .filter(|a| a.is_finite())
+            .is_some_and(|a| along(&end, &self.end_from(odom, a)) <= past_m);
+        let points = centroids.iter().map(|c| odom.transform_point(c[0], c[1]));
+        let rows = rows_past_end(self.spacing_m(), &end, past_m, GAP_ROWS, points);
+        self.crop_past_end =
+            if !confirmed && rows >= self.cfg.gap_rows { self.crop_past_end.saturating_add(1) } else { 0 };
+    }
+
+    /// True once `gap_confirmations` scans in a row showed crop past the row end.
+    fn gap_seen(&self) -> bool {
+        self.cfg.gap_confirmations > 0 && self.crop_past_end >= self.cfg.gap_confirmations
+    }
+
+    /// True while the robot stands at the first pivot of a pivot turn, still heading within
+    /// `GAP_PIVOT_RAD` of the lane: the scan still looks along it, past the row end.
+    fn at_first_pivot(&self, odom: &Pose2) -> bool {
+        self.cfg.pivots()
+            && self.pivoting
+            && self.turn.segments().len() == 2
+            && self.exit_line.is_some_and(|end| wrap_angle(odom.yaw - end.yaw).abs() <= GAP_PIVOT_RAD)
+    }
+
+    /// The row end was a gap in the rows: forgets it, the pivots planned at it and the rows' ends
+    /// measured before it (they run on past the gap).
+    fn forget_end(&mut self) {
+        self.row_end = None;
+        self.end_trim_m = 0.0;
+        self.pivots = None;
+        self.row_ends.clear();
+        self.crop_past_end = 0;
     }
 
     /// The row spacing the turns use, m: `row_spacing_m`, the planted spacing. The detector's running
@@ -697,6 +793,12 @@ impl LaneSwitcher {
                 }
             }
             Mode::Following => self.follow(odom, detection, travelled),
+            Mode::ClearingRowEnd if self.gap_seen() => {
+                // Crop past the end: it was a gap. Follow on across it on the lane's rows, which the
+                // detector still tracks (that is part of the evidence).
+                self.mode = Mode::Following;
+                self.follow(odom, detection, travelled);
+            }
             Mode::ClearingRowEnd => {
                 if let (Some(d), Some(end)) = (detection, self.row_end)
                     && let Some(ahead) = self.end_ahead(d)
@@ -725,6 +827,15 @@ impl LaneSwitcher {
                         reset_detector = true;
                     }
                 }
+            }
+            Mode::Turning if self.gap_seen() => {
+                // Crop past the end once the first pivot began: the robot stands in the gap, heading off
+                // the lane. The turn did not happen: the lane is not done, and the next turn goes the
+                // same way.
+                self.lanes_completed = self.lanes_completed.saturating_sub(1);
+                self.turn_index = self.turn_index.wrapping_sub(1);
+                self.crop_past_end = 0;
+                self.mode = Mode::Stopped { reason: StopReason::CropPastRowEnd };
             }
             Mode::Turning => {
                 if self.advance_turn(odom) {
@@ -874,6 +985,10 @@ impl LaneSwitcher {
     }
 
     fn follow(&mut self, odom: &Pose2, detection: Option<&Detection>, travelled: f64) {
+        if self.gap_seen() {
+            // Crop past the row end: it was a gap in the rows, and the detector reports the next end.
+            self.forget_end();
+        }
         let mut saw_rows = false;
         if let Some(d) = detection {
             if d.status != RowStatus::Lost && self.continues_line(d, odom) {
@@ -1336,5 +1451,89 @@ mod tests {
         all.validate().unwrap();
         // Lanes 3, 5, 7.
         assert_eq!(all.lane_count(), 3);
+    }
+
+    /// Scans of a switcher at `x` on the lane y = 0 that track the rows, report no row end and map
+    /// crop on the rows `ys` (m, left of the centre line) at `crop_x` (`odom` x, m).
+    fn see_crop_past(sw: &mut LaneSwitcher, x: f64, t: f64, crop_x: f64, ys: &[f64]) -> Mode {
+        let at = Pose2::new(x, 0.0, 0.0);
+        let d = rows(t, 0.0);
+        let centroids: Vec<[f64; 2]> = ys.iter().map(|&y| [crop_x - x, y]).collect();
+        sw.observe_canopy(&at, &d, &centroids);
+        sw.update(&at, Some(&d)).mode
+    }
+
+    #[test]
+    fn crop_past_the_row_end_while_following_makes_it_a_gap() {
+        // The canopy seemed to end at x = 3 (a stretch of every row missing); from x = 1.5 the lane's
+        // rows show crop again at x = 4.5, and the detector withdraws its end.
+        let (mut sw, _) = approach_end(LaneSwitchConfig::default(), &[[1.9, 0.37], [1.95, -0.37]], 1.5);
+        assert_eq!(sw.mode(), Mode::Following);
+        for k in 0..3 {
+            assert!(sw.row_end().is_some(), "dropped after {k} scans");
+            see_crop_past(&mut sw, 1.5 + 0.05 * k as f64, 1.0 + 0.1 * k as f64, 4.5, &[0.375, -0.375]);
+        }
+        assert_eq!((sw.mode(), sw.row_end()), (Mode::Following, None));
+        // Driving on across the gap, no turn starts where the end was.
+        for k in 0..40 {
+            let x = 1.6 + 0.05 * k as f64;
+            let mode = sw.update(&Pose2::new(x, 0.0, 0.0), Some(&rows(2.0 + 0.1 * k as f64, 0.0))).mode;
+            assert_eq!(mode, Mode::Following, "at x {x}");
+        }
+    }
+
+    #[test]
+    fn crop_past_the_row_end_while_clearing_it_cancels_the_turn() {
+        // The robot reached the "end" at x = 3 and drives on to the pivot; the crop beyond the gap
+        // comes into view on both lane rows: it follows again instead of turning.
+        let (mut sw, x) = approach_end(LaneSwitchConfig::default(), &[[1.9, 0.37], [1.95, -0.37]], 3.3);
+        assert_eq!(sw.mode(), Mode::ClearingRowEnd, "at x {x}");
+        let modes: Vec<Mode> = (0..3)
+            .map(|k| see_crop_past(&mut sw, x + 0.03 * k as f64, 2.0 + 0.1 * k as f64, 6.0, &[0.375, -0.375]))
+            .collect();
+        assert_eq!(modes, [Mode::ClearingRowEnd, Mode::ClearingRowEnd, Mode::Following]);
+        assert_eq!(sw.row_end(), None);
+        assert_eq!(sw.lanes_completed(), 0);
+    }
+
+    #[test]
+    fn crop_past_the_row_end_on_one_row_keeps_the_end() {
+        // A weed on one row line (or the detector confirming its end) is not a row running on.
+        let (mut sw, x) = approach_end(LaneSwitchConfig::default(), &[[1.9, 0.37], [1.95, -0.37]], 3.3);
+        for k in 0..5 {
+            see_crop_past(&mut sw, x, 2.0 + 0.1 * k as f64, 6.0, &[0.375]);
+        }
+        let confirmed = Detection { row_end_ahead_m: Some(3.0 - x), ..rows(3.0, 0.0) };
+        for k in 0..5 {
+            sw.observe_canopy(&Pose2::new(x, 0.0, 0.0), &confirmed, &[[6.0 - x, 0.375], [6.0 - x, -0.375]]);
+            sw.update(
+                &Pose2::new(x, 0.0, 0.0),
+                Some(&Detection { stamp_s: 3.0 + 0.1 * k as f64, ..confirmed }),
+            );
+        }
+        assert_eq!(sw.mode(), Mode::ClearingRowEnd);
+        assert!(sw.row_end().is_some());
+    }
+
+    #[test]
+    fn crop_past_the_row_end_at_the_first_pivot_stops_the_turn() {
+        let (mut sw, x) = approach_end(LaneSwitchConfig::default(), &[[1.9, 0.37], [1.95, -0.37]], 6.0);
+        assert_eq!((sw.mode(), sw.lanes_completed()), (Mode::Turning, 1), "at x {x}");
+        // Pivoting on the spot, 0.2 rad round, the scan still looks past the end.
+        let at = Pose2::new(x, 0.0, -0.2);
+        let (ahead_x, ahead_y) = at.inverse_transform_point(6.0, 0.375);
+        let (ahead_x2, ahead_y2) = at.inverse_transform_point(6.0, -0.375);
+        for k in 0..3 {
+            sw.observe_canopy(
+                &at,
+                &rows(5.0 + 0.1 * k as f64, 0.0),
+                &[[ahead_x, ahead_y], [ahead_x2, ahead_y2]],
+            );
+            sw.update(&at, Some(&rows(5.0 + 0.1 * k as f64, 0.0)));
+        }
+        assert_eq!(sw.mode(), Mode::Stopped { reason: StopReason::CropPastRowEnd });
+        // The lane was not done, and the stop waits for a person.
+        assert_eq!(sw.lanes_completed(), 0);
+        assert!(!StopReason::CropPastRowEnd.clears_by_itself());
     }
 }
