@@ -59,3 +59,32 @@ fn an_unconfirmed_lane_is_not_entered_on_odometry_alone() {
     let o = safe_run(26, "grown corn 11.3 m x 7 rows 0.70 m apart");
     assert_eq!(o.end, "stopped: reentry_not_confirmed", "{o:?}");
 }
+
+#[test]
+fn a_gap_across_every_row_is_crossed_not_turned_at() {
+    // Young soybean, every row empty over x = 5.2-6.3 m: the detector called the canopy end at the gap
+    // for a few scans, then saw the crop beyond and withdrew it, but the lane switcher kept the end and
+    // pivoted 1.3 m past it, into the plants beyond the gap (7 plants). Now crop past the end, beyond
+    // an empty stretch, drops it: the robot follows on across the gap to the real row end.
+    let o = safe_run(600, "young soybean 12.3 m x 8 rows 0.76 m apart");
+    assert_eq!((o.end.as_str(), o.lanes_completed), ("done", 2), "{o:?}");
+}
+
+#[test]
+fn a_row_end_seen_through_a_missing_scan_sector_is_dropped_once_the_crop_shows() {
+    // Young soybean, a 119° sector of the scan missing over x = 2.8-5.7 m: the rows' far part
+    // vanished with it and the canopy seemed to end; the turn started there, in the field (9 plants).
+    let o = safe_run(646, "young soybean 13.9 m x 7 rows 0.76 m apart");
+    assert_eq!((o.end.as_str(), o.lanes_completed), ("done", 2), "{o:?}");
+}
+
+#[test]
+fn a_row_end_that_recedes_with_a_tilted_lidar_stops_the_robot() {
+    // Young soybean, the LiDAR mount off by (1.8, -0.8, -2.3)°: past the crop the ground read as
+    // canopy, the row end stayed 2-3 m ahead of the robot wherever it went, and the robot followed
+    // phantom rows round a 14 m circle outside the field for 80 m, then turned into the crop
+    // (12 plants). Now an end that moves away more than 1 m past where it was first seen stops it.
+    let o = safe_run(948, "young soybean 12.5 m x 7 rows 0.75 m apart");
+    assert_eq!(o.end, "stopped: row_end_receding", "{o:?}");
+    assert!(o.distance_m < 13.0, "{o:?}");
+}

@@ -145,35 +145,44 @@ pub fn plan_pivots(
 }
 
 /// Counts the rows `q` in `rows` (the rows `(q + ½)·spacing_m` to the left of the lane's centre line,
-/// as in [`RowEnds::observe`]) that hold a point farther than `past_m` along the lane past its row end.
-/// `end` is a pose on the centre line at the row end, heading out of the field (`odom`); `points` are
-/// in `odom`, m. Crop standing on several rows past a measured row end means the "end" was a gap in
-/// the rows, not the headland: one row's worth (a weed on a row line, a stray return) is not enough.
-/// Non-finite points and points between rows are skipped; at most 32 rows are counted.
+/// as in [`RowEnds::observe`]) that hold a point farther than `past_m` along the lane past its row end
+/// and none between `clear_m` and `past_m`: crop beyond an empty stretch. `end` is a pose on the
+/// centre line at the row end, heading out of the field (`odom`); `points` are in `odom`, m. Crop
+/// standing on several rows beyond an empty stretch past a measured row end means the "end" was a gap
+/// in the rows, not the headland; one row's worth (a weed on a row line, a stray return) is not
+/// enough, and canopy that runs on without a break past the end is not a gap (a tilted sensor reading
+/// the ground as crop). Non-finite points and points between rows are skipped; at most 32 rows count.
 pub fn rows_past_end(
     spacing_m: f64,
     end: &Pose2,
+    clear_m: f64,
     past_m: f64,
     rows: std::ops::RangeInclusive<i32>,
     points: impl Iterator<Item = (f64, f64)>,
 ) -> u32 {
-    if !spacing_m.is_finite() || spacing_m <= 0.0 || !past_m.is_finite() {
+    if !spacing_m.is_finite() || spacing_m <= 0.0 || !past_m.is_finite() || !clear_m.is_finite() {
         return 0;
     }
     let first = *rows.start();
-    let mut seen = 0u32;
+    let (mut past, mut within) = (0u32, 0u32);
     for (x, y) in points.filter(|(x, y)| x.is_finite() && y.is_finite()) {
         let (along, lateral) = end.inverse_transform_point(x, y);
         let row = lateral / spacing_m - 0.5;
         let q = row.round();
-        if along <= past_m || (row - q).abs() > ROW_GATE || !rows.contains(&(q as i32)) {
+        if along <= clear_m || (row - q).abs() > ROW_GATE || !rows.contains(&(q as i32)) {
             continue;
         }
-        if let Some(bit) = u32::try_from(q as i64 - i64::from(first)).ok().and_then(|i| 1u32.checked_shl(i)) {
-            seen |= bit;
+        let Some(bit) = u32::try_from(q as i64 - i64::from(first)).ok().and_then(|i| 1u32.checked_shl(i))
+        else {
+            continue;
+        };
+        if along > past_m {
+            past |= bit;
+        } else {
+            within |= bit;
         }
     }
-    seen.count_ones()
+    (past & !within).count_ones()
 }
 
 /// The farthest row centroid seen on each row about a lane's centre line, in `odom`. A fixed array:
@@ -362,19 +371,26 @@ mod tests {
     }
 
     #[test]
-    fn rows_past_an_end_count_each_row_once_and_only_past_the_margin() {
+    fn rows_past_an_end_count_crop_beyond_an_empty_stretch_once_per_row() {
         // The end at x = 4 heading +x; rows 0.75 m apart at ±0.375, ±1.125.
         let end = Pose2::new(4.0, 0.0, 0.0);
         let points =
             [(5.0, 0.37), (5.5, 0.38), (5.0, -0.4), (4.4, 1.12), (5.0, 0.75), (f64::NAN, 0.37), (6.0, 3.0)];
         // Row 0 twice (counted once), row -1; row 1 is not past 0.5 m; 0.75 is between rows; 3.0 is
         // outside the rows counted.
-        assert_eq!(rows_past_end(0.75, &end, 0.5, -2..=1, points.into_iter()), 2);
-        assert_eq!(rows_past_end(0.75, &end, 0.3, -2..=1, points.into_iter()), 3);
-        assert_eq!(rows_past_end(0.75, &end, 0.5, 0..=0, points.into_iter()), 1);
+        assert_eq!(rows_past_end(0.75, &end, 0.25, 0.5, -2..=1, points.into_iter()), 2);
+        assert_eq!(rows_past_end(0.75, &end, 0.25, 0.5, 0..=0, points.into_iter()), 1);
+        // Row 1's point at 0.4 m: with the empty stretch starting at 0.1 m and crop counted past
+        // 0.3 m, it counts; with crop counted past 0.45 m, that point lies in the stretch.
+        assert_eq!(rows_past_end(0.75, &end, 0.1, 0.3, -2..=1, points.into_iter()), 3);
+        let on_row_1 = points.into_iter().chain([(6.0, 1.125)]);
+        assert_eq!(rows_past_end(0.75, &end, 0.1, 0.45, -2..=1, on_row_1), 2);
+        // Canopy running on without a break past the end is no gap.
+        let running_on = (0..40).map(|k| (4.0 + 0.05 * f64::from(k), 0.375));
+        assert_eq!(rows_past_end(0.75, &end, 0.25, 0.75, -2..=1, running_on), 0);
         // Behind the end, or with an absurd spacing, nothing counts.
         let reversed = Pose2::new(4.0, 0.0, std::f64::consts::PI);
-        assert_eq!(rows_past_end(0.75, &reversed, 0.5, -2..=1, points.into_iter()), 0);
-        assert_eq!(rows_past_end(f64::NAN, &end, 0.5, -2..=1, points.into_iter()), 0);
+        assert_eq!(rows_past_end(0.75, &reversed, 0.25, 0.5, -2..=1, points.into_iter()), 0);
+        assert_eq!(rows_past_end(f64::NAN, &end, 0.25, 0.5, -2..=1, points.into_iter()), 0);
     }
 }

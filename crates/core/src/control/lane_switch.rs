@@ -214,6 +214,15 @@ pub struct LaneSwitchConfig {
     /// past the row end before it is dropped as a gap (see the module docs); 0 makes the first end
     /// seen final. Default 3 (0.3 s of scans at 10 Hz).
     pub gap_confirmations: u32,
+    /// Farthest a reported row end is believed past where the lane's end was first seen, m. A row
+    /// end is a place: one that keeps moving away ahead of the robot is canopy seen everywhere (a
+    /// tilted LiDAR reading the ground as crop), not the end of the rows. Farther reports are not
+    /// taken; `end_recession_scans` of them stop the robot (`row_end_receding`). A gap across the rows
+    /// (crop beyond an empty stretch, see `gap_confirmations`) starts the count over at the next end.
+    /// Default 1.0 (two detector map bins plus the 0.5 m `row_end_window_m`).
+    pub max_end_recession_m: f64,
+    /// Reports of a row end past `max_end_recession_m` that stop the robot. Default 5.
+    pub end_recession_scans: u32,
 }
 
 impl Default for LaneSwitchConfig {
@@ -254,6 +263,8 @@ impl Default for LaneSwitchConfig {
             gap_margin_m: 0.5,
             gap_rows: 2,
             gap_confirmations: 3,
+            max_end_recession_m: 1.0,
+            end_recession_scans: 5,
         }
     }
 }
@@ -302,6 +313,8 @@ impl LaneSwitchConfig {
             f64::from(GAP_ROWS.end() - GAP_ROWS.start() + 1),
         )?;
         check_range("lane_switch.gap_confirmations", f64::from(self.gap_confirmations), 0.0, 1000.0)?;
+        check_range("lane_switch.max_end_recession_m", self.max_end_recession_m, 0.1, 100.0)?;
+        check_range("lane_switch.end_recession_scans", f64::from(self.end_recession_scans), 1.0, 1000.0)?;
         let shift = self.shift_m();
         check_range("lane_switch.turn_radius_m", self.turn_radius_m, 0.0, 0.5 * shift)?;
         let reach = self.turn_excursion_m();
@@ -441,6 +454,10 @@ pub enum StopReason {
     /// the rows. The robot stands in the gap, off the lane's heading; a person decides (the same lane
     /// again after [`LaneSwitcher::resume`], or the turn).
     CropPastRowEnd,
+    /// The row end the detector reports kept moving away ahead of the robot, more than
+    /// `max_end_recession_m` past where it was first seen: the canopy it sees does not end (a tilted
+    /// LiDAR reading the ground as crop), so neither the row end nor the rows can be trusted.
+    RowEndReceding,
 }
 
 impl StopReason {
@@ -462,6 +479,7 @@ impl StopReason {
             StopReason::SolverFailed => "solver_failed",
             StopReason::NoRoomToTurn => "no_room_to_turn",
             StopReason::CropPastRowEnd => "crop_past_row_end",
+            StopReason::RowEndReceding => "row_end_receding",
         }
     }
 }
@@ -563,6 +581,10 @@ pub struct LaneSwitcher {
     entry_anchored: bool,
     /// Consecutive scans that showed crop past the row end (see `gap_confirmations`).
     crop_past_end: u32,
+    /// Where the current row end was first seen (`odom`): the end is a place.
+    end_anchor: Option<Pose2>,
+    /// Row ends reported past `max_end_recession_m` from the anchor.
+    receding: u32,
 }
 
 impl LaneSwitcher {
@@ -593,6 +615,8 @@ impl LaneSwitcher {
             entry_row_end_m: 0.0,
             entry_anchored: false,
             crop_past_end: 0,
+            end_anchor: None,
+            receding: 0,
             cfg,
         })
     }
@@ -694,13 +718,14 @@ impl LaneSwitcher {
         };
         // The row end was moved back from the detector's canopy end by `end_trim_m`; the last plants'
         // centroids may lie up to a map bin past that canopy end.
-        let past_m = self.end_trim_m + ROW_END_BIN_M + self.cfg.gap_margin_m;
+        let clear_m = self.end_trim_m + ROW_END_BIN_M;
+        let past_m = clear_m + self.cfg.gap_margin_m;
         let confirmed = detection
             .row_end_ahead_m
             .filter(|a| a.is_finite())
             .is_some_and(|a| along(&end, &self.end_from(odom, a)) <= past_m);
         let points = centroids.iter().map(|c| odom.transform_point(c[0], c[1]));
-        let rows = rows_past_end(self.spacing_m(), &end, past_m, GAP_ROWS, points);
+        let rows = rows_past_end(self.spacing_m(), &end, clear_m, past_m, GAP_ROWS, points);
         self.crop_past_end =
             if !confirmed && rows >= self.cfg.gap_rows { self.crop_past_end.saturating_add(1) } else { 0 };
     }
@@ -727,6 +752,24 @@ impl LaneSwitcher {
         self.pivots = None;
         self.row_ends.clear();
         self.crop_past_end = 0;
+        self.end_anchor = None;
+        self.receding = 0;
+    }
+
+    /// Takes a row end the detector reports (`odom`). The first of a lane anchors it; one more than
+    /// `max_end_recession_m` past the anchor is not taken, and `end_recession_scans` of those stop
+    /// the robot (`row_end_receding`): a row end is a place, and one that moves away with the robot is
+    /// canopy seen everywhere.
+    fn take_end(&mut self, end: Pose2) {
+        let anchor = *self.end_anchor.get_or_insert(end);
+        if along(&anchor, &end) <= self.cfg.max_end_recession_m {
+            self.row_end = Some(end);
+            return;
+        }
+        self.receding = self.receding.saturating_add(1);
+        if self.receding >= self.cfg.end_recession_scans {
+            self.mode = Mode::Stopped { reason: StopReason::RowEndReceding };
+        }
     }
 
     /// The row spacing the turns use, m: `row_spacing_m`, the planted spacing. The detector's running
@@ -806,8 +849,11 @@ impl LaneSwitcher {
                     // A closer look refines the row end; only small corrections are believed.
                     let refined = self.end_from(odom, ahead);
                     if along(&end, &refined).abs() < 1.0 {
-                        self.row_end = Some(refined);
+                        self.take_end(refined);
                     }
+                }
+                if self.mode.is_stopped() {
+                    return self.guidance(reset_detector, odom);
                 }
                 self.replan();
                 let tolerance = if self.stops_at_turn_start() { STOP_TOLERANCE_M } else { 0.0 };
@@ -981,6 +1027,9 @@ impl LaneSwitcher {
         self.pivoting = false;
         self.row_ends.clear();
         self.pivots = None;
+        self.crop_past_end = 0;
+        self.end_anchor = None;
+        self.receding = 0;
         self.s_hint_m = self.reference.path().map_or(0.0, |p| p.project(odom, 0.0).s_m);
     }
 
@@ -1000,9 +1049,12 @@ impl LaneSwitcher {
                 *m += SPACING_GAIN * (s - *m);
             }
             if let Some(ahead) = self.end_ahead(d) {
-                self.row_end = Some(self.end_from(odom, ahead));
+                self.take_end(self.end_from(odom, ahead));
+                if self.mode.is_stopped() {
+                    return;
+                }
             } else if d.status == RowStatus::EndOfRow && self.row_end.is_none() {
-                self.row_end = Some(self.end_from(odom, self.cfg.default_row_end_ahead_m));
+                self.take_end(self.end_from(odom, self.cfg.default_row_end_ahead_m));
             }
         }
         if let Some(path) = self.reference.path() {
@@ -1535,5 +1587,46 @@ mod tests {
         // The lane was not done, and the stop waits for a person.
         assert_eq!(sw.lanes_completed(), 0);
         assert!(!StopReason::CropPastRowEnd.clears_by_itself());
+    }
+
+    #[test]
+    fn a_row_end_that_moves_away_with_the_robot_stops_it() {
+        // A tilted LiDAR reading the ground as crop: the canopy "ends" 2.75 m ahead of the robot
+        // wherever it is. The end first seen at x = 3.75 is kept, and the fifth report more than 1 m
+        // past it stops the robot before it gets there.
+        let mut sw = LaneSwitcher::new(LaneSwitchConfig::default(), ReferenceConfig::default()).unwrap();
+        sw.update(&Pose2::new(1.0, 0.0, 0.0), Some(&rows(0.0, 0.0)));
+        let mut modes = Vec::new();
+        for k in 0..30 {
+            let x = 1.0 + 0.05 * k as f64;
+            let d = Detection { row_end_ahead_m: Some(2.75), ..rows(0.1 * (k + 1) as f64, 0.0) };
+            modes.push(sw.update(&Pose2::new(x, 0.0, 0.0), Some(&d)).mode);
+            if modes.last().is_some_and(Mode::is_stopped) {
+                break;
+            }
+        }
+        let stop = modes.iter().position(Mode::is_stopped).expect("stops");
+        assert_eq!(modes[stop], Mode::Stopped { reason: StopReason::RowEndReceding });
+        // Reports up to 1 m past 3.75 are taken (robot at x = 2.0, step 20); five refusals follow.
+        assert_eq!(stop, 20 + 5, "{modes:?}");
+        let end = sw.row_end().unwrap();
+        assert!((end.x - 4.75).abs() < 1e-9, "{end:?}");
+    }
+
+    #[test]
+    fn a_row_end_refined_closer_or_a_little_farther_is_taken() {
+        let mut sw = LaneSwitcher::new(LaneSwitchConfig::default(), ReferenceConfig::default()).unwrap();
+        sw.update(&Pose2::new(1.0, 0.0, 0.0), Some(&rows(0.0, 0.0)));
+        // First seen at x = 4.5, then 0.25 m nearer, then 0.9 m past the first sighting.
+        for (k, end_x) in [4.5, 4.25, 5.4, 5.4].into_iter().enumerate() {
+            let x = 1.0 + 0.05 * k as f64;
+            let mut d = Detection { row_end_ahead_m: Some(end_x - x), ..rows(0.1 * (k + 1) as f64, 0.0) };
+            // Rows fitted past the reported end: no trim to the last centroid.
+            for r in [d.left.as_mut(), d.right.as_mut()].into_iter().flatten() {
+                r.line[2] = 10.0;
+            }
+            assert_eq!(sw.update(&Pose2::new(x, 0.0, 0.0), Some(&d)).mode, Mode::Following);
+            assert!((sw.row_end().unwrap().x - end_x).abs() < 1e-9);
+        }
     }
 }
