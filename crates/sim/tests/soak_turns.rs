@@ -60,22 +60,34 @@ fn an_unconfirmed_lane_is_not_entered_on_odometry_alone() {
     assert_eq!(o.end, "stopped: reentry_not_confirmed", "{o:?}");
 }
 
+/// Runs the soak case of `seed` with the lane switcher's gap rule on (`lane_switch.gap_confirmations`
+/// = 3, off by default) and checks it was safe.
+fn safe_run_with_gap_rule(seed: u64, summary: &str) -> Outcome {
+    let mut case = soak_case(seed);
+    assert!(case.scenario.summary.starts_with(summary), "{}", case.scenario.summary);
+    case.navigator.lane_switch.gap_confirmations = 3;
+    let outcome = run_case(&case).expect("runs");
+    assert_eq!((outcome.crop_contacts, outcome.unsafe_commands), (0, 0), "{outcome:?}");
+    outcome
+}
+
 #[test]
 fn a_gap_across_every_row_is_crossed_not_turned_at() {
     // Young soybean, every row empty over x = 5.2-6.3 m: the detector called the canopy end at the gap
     // for a few scans, then saw the crop beyond and withdrew it, but the lane switcher kept the end and
-    // pivoted 1.3 m past it, into the plants beyond the gap (7 plants). Now crop past the end, beyond
-    // an empty stretch, drops it: the robot follows on across the gap to the real row end.
-    let o = safe_run(600, "young soybean 12.3 m x 8 rows 0.76 m apart");
+    // pivoted 1.3 m past it, into the plants beyond the gap (7 plants). With the gap rule, crop
+    // standing past the end beyond an empty stretch drops it: the robot follows on across the gap.
+    let o = safe_run_with_gap_rule(600, "young soybean 12.3 m x 8 rows 0.76 m apart");
     assert_eq!((o.end.as_str(), o.lanes_completed), ("done", 2), "{o:?}");
 }
 
 #[test]
-fn a_row_end_seen_through_a_missing_scan_sector_is_dropped_once_the_crop_shows() {
+fn a_row_end_seen_through_a_missing_scan_sector_does_not_turn_into_the_crop() {
     // Young soybean, a 119° sector of the scan missing over x = 2.8-5.7 m: the rows' far part
     // vanished with it and the canopy seemed to end; the turn started there, in the field (9 plants).
-    let o = safe_run(646, "young soybean 13.9 m x 7 rows 0.76 m apart");
-    assert_eq!((o.end.as_str(), o.lanes_completed), ("done", 2), "{o:?}");
+    // With the gap rule the crop shows again at the first pivot and the robot stops there.
+    let o = safe_run_with_gap_rule(646, "young soybean 13.9 m x 7 rows 0.76 m apart");
+    assert_eq!(o.end, "stopped: crop_past_row_end", "{o:?}");
 }
 
 #[test]

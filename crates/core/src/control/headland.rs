@@ -152,6 +152,9 @@ pub fn plan_pivots(
 /// in the rows, not the headland; one row's worth (a weed on a row line, a stray return) is not
 /// enough, and canopy that runs on without a break past the end is not a gap (a tilted sensor reading
 /// the ground as crop). Non-finite points and points between rows are skipped; at most 32 rows count.
+/// Also returns the nearest such crop, m along past the end (infinite with none): crop that stays
+/// where it is while the robot drives on is a place; crop that keeps its distance ahead of the
+/// robot is not.
 pub fn rows_past_end(
     spacing_m: f64,
     end: &Pose2,
@@ -159,12 +162,13 @@ pub fn rows_past_end(
     past_m: f64,
     rows: std::ops::RangeInclusive<i32>,
     points: impl Iterator<Item = (f64, f64)>,
-) -> u32 {
+) -> (u32, f64) {
     if !spacing_m.is_finite() || spacing_m <= 0.0 || !past_m.is_finite() || !clear_m.is_finite() {
-        return 0;
+        return (0, f64::INFINITY);
     }
     let first = *rows.start();
     let (mut past, mut within) = (0u32, 0u32);
+    let mut nearest = [f64::INFINITY; 32];
     for (x, y) in points.filter(|(x, y)| x.is_finite() && y.is_finite()) {
         let (along, lateral) = end.inverse_transform_point(x, y);
         let row = lateral / spacing_m - 0.5;
@@ -172,17 +176,25 @@ pub fn rows_past_end(
         if along <= clear_m || (row - q).abs() > ROW_GATE || !rows.contains(&(q as i32)) {
             continue;
         }
-        let Some(bit) = u32::try_from(q as i64 - i64::from(first)).ok().and_then(|i| 1u32.checked_shl(i))
-        else {
+        let Some(i) = u32::try_from(q as i64 - i64::from(first)).ok().filter(|i| *i < 32) else {
             continue;
         };
+        let bit = 1u32 << i;
         if along > past_m {
             past |= bit;
+            if let Some(n) = nearest.get_mut(i as usize) {
+                *n = n.min(along);
+            }
         } else {
             within |= bit;
         }
     }
-    (past & !within).count_ones()
+    let counted = past & !within;
+    let near = (0..32)
+        .filter(|i| counted & (1 << i) != 0)
+        .filter_map(|i| nearest.get(i))
+        .fold(f64::INFINITY, |a, &b| a.min(b));
+    (counted.count_ones(), near)
 }
 
 /// The farthest row centroid seen on each row about a lane's centre line, in `odom`. A fixed array:
@@ -378,19 +390,20 @@ mod tests {
             [(5.0, 0.37), (5.5, 0.38), (5.0, -0.4), (4.4, 1.12), (5.0, 0.75), (f64::NAN, 0.37), (6.0, 3.0)];
         // Row 0 twice (counted once), row -1; row 1 is not past 0.5 m; 0.75 is between rows; 3.0 is
         // outside the rows counted.
-        assert_eq!(rows_past_end(0.75, &end, 0.25, 0.5, -2..=1, points.into_iter()), 2);
-        assert_eq!(rows_past_end(0.75, &end, 0.25, 0.5, 0..=0, points.into_iter()), 1);
+        assert_eq!(rows_past_end(0.75, &end, 0.25, 0.5, -2..=1, points.into_iter()), (2, 1.0));
+        assert_eq!(rows_past_end(0.75, &end, 0.25, 0.5, 0..=0, points.into_iter()).0, 1);
         // Row 1's point at 0.4 m: with the empty stretch starting at 0.1 m and crop counted past
         // 0.3 m, it counts; with crop counted past 0.45 m, that point lies in the stretch.
-        assert_eq!(rows_past_end(0.75, &end, 0.1, 0.3, -2..=1, points.into_iter()), 3);
+        let (rows, near) = rows_past_end(0.75, &end, 0.1, 0.3, -2..=1, points.into_iter());
+        assert!(rows == 3 && (near - 0.4).abs() < 1e-12, "{rows} {near}");
         let on_row_1 = points.into_iter().chain([(6.0, 1.125)]);
-        assert_eq!(rows_past_end(0.75, &end, 0.1, 0.45, -2..=1, on_row_1), 2);
+        assert_eq!(rows_past_end(0.75, &end, 0.1, 0.45, -2..=1, on_row_1).0, 2);
         // Canopy running on without a break past the end is no gap.
         let running_on = (0..40).map(|k| (4.0 + 0.05 * f64::from(k), 0.375));
-        assert_eq!(rows_past_end(0.75, &end, 0.25, 0.75, -2..=1, running_on), 0);
+        assert_eq!(rows_past_end(0.75, &end, 0.25, 0.75, -2..=1, running_on).0, 0);
         // Behind the end, or with an absurd spacing, nothing counts.
         let reversed = Pose2::new(4.0, 0.0, std::f64::consts::PI);
-        assert_eq!(rows_past_end(0.75, &reversed, 0.25, 0.5, -2..=1, points.into_iter()), 0);
-        assert_eq!(rows_past_end(f64::NAN, &end, 0.25, 0.5, -2..=1, points.into_iter()), 0);
+        assert_eq!(rows_past_end(0.75, &reversed, 0.25, 0.5, -2..=1, points.into_iter()).0, 0);
+        assert_eq!(rows_past_end(f64::NAN, &end, 0.25, 0.5, -2..=1, points.into_iter()).0, 0);
     }
 }

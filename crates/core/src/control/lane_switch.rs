@@ -19,6 +19,9 @@
 //! Following: a centre line over `max_line_jump_m` from the one followed is not believed (no row)
 //! Entering:  rows disagree with the planned lane ─► Stopped { WrongLane };
 //!            too deep into the field unconfirmed ─► Stopped { ReentryNotConfirmed }
+//! Following, ClearingRowEnd: crop past the row end beyond an empty stretch ─► Following (a gap; opt-in)
+//! Turning, at the first pivot: crop past the row end ─► Stopped { CropPastRowEnd }
+//! Following, ClearingRowEnd: the row end recedes with the robot ─► Stopped { RowEndReceding }
 //! ```
 //!
 //! # The headland turn and what is bounded
@@ -55,6 +58,31 @@
 //! farthest centroid of the lane's rows lies within `row_end_window_m` before that edge, the row end
 //! is put at that centroid instead: the centre of the last plants' canopy, a better estimate of where
 //! the stems end.
+//!
+//! # A row end is not final until the headland past it is seen empty
+//! A stretch missing from every row (or rows hidden by a missing scan sector) looks like the row end
+//! from afar. The detector's map keeps mapping the lane's rows as the robot drives on; with the gap
+//! rule on (`gap_confirmations` > 0; off by default, see that field), when on `gap_confirmations`
+//! scans in a row crop stands on `gap_rows` of the lane's rows and their outer neighbours more than
+//! `gap_margin_m` past the end's canopy, beyond an empty stretch, and stays where it is while the
+//! robot drives 0.5 m towards it, and the detector tracks the rows and does not confirm the end, the
+//! end was a gap:
+//! * while following or clearing the row end, it is dropped and the robot follows on across the
+//!   gap on the lane's rows (which the detector still tracks: that is part of the evidence);
+//! * once the first pivot has begun (heading still within 0.5 rad of the lane, the scan looking past
+//!   the end), the robot stops, `crop_past_row_end`: it stands in the gap off the lane's heading, and
+//!   the lane is not counted as done. Later in the turn the scan looks across the headland, and the
+//!   robot has left the lane.
+//!
+//! The scan reaches about 4.3 m ahead of `base_link` (the detector's 4 m range from a sensor 1.5 m
+//! up), so from the first pivot, 1.3-1.5 m past the end, it sees 5.6-5.8 m past it: a gap longer
+//! than that is indistinguishable from the headland, and the robot turns (or ends the mission) in it.
+//!
+//! A row end is a place. The first end reported on a lane anchors it; an end reported more than
+//! `max_end_recession_m` past the anchor is not taken, and `end_recession_scans` of those stop the
+//! robot (`row_end_receding`): an end that keeps its distance ahead of the robot is canopy seen
+//! everywhere (a tilted LiDAR reading the ground as crop past the rows), and the rows followed there
+//! are not rows. A gap (above) starts the anchor over.
 
 use std::f64::consts::{FRAC_PI_2, PI};
 
@@ -76,6 +104,10 @@ const ROW_END_BIN_M: f64 = 0.25;
 /// The rows whose crop past a row end makes it a gap: the lane's two and their outer neighbours, the
 /// rows the detector ends a lane on (`q` as in [`RowEnds`]).
 const GAP_ROWS: std::ops::RangeInclusive<i32> = -2..=1;
+/// Distance the robot must drive towards crop past a row end, which must stay where it is meanwhile,
+/// before the end is taken for a gap, m: two map bins. A pitched LiDAR's phantom canopy at the scan's
+/// far edge moves out as far as the robot drives.
+const GAP_TRAVEL_M: f64 = 0.5;
 /// Largest heading change at the first pivot, rad, up to which crop past the row end still stops the
 /// turn: beyond it the scan looks across the headland, not along the lane.
 const GAP_PIVOT_RAD: f64 = 0.5;
@@ -201,18 +233,24 @@ pub struct LaneSwitchConfig {
     /// line followed before the stop (the robot stood still: the lane cannot have changed). 0 latches
     /// every stop until [`LaneSwitcher::resume`]. Default 5 (half a second of scans at 10 Hz).
     pub resume_confirmations: u32,
-    /// Distance past the canopy end of the row end believed (one map bin past it, where the last
-    /// plants' centroids may still lie) beyond which crop on the lane's rows means the "end" was a
-    /// gap in the rows, m. Default 0.5: the detector calls an end only after 1 m of empty ground
-    /// (`detector.end_empty_m`), and the headland beyond a true end holds no crop.
+    /// Distance past the canopy end of the row end beyond which crop on the lane's rows means the
+    /// "end" was a gap in the rows, m; from one map bin past the canopy end (where the last plants'
+    /// centroids may still lie) up to this distance the rows must stay empty. Default 1.0: the
+    /// detector calls an end after seeing 1 m of empty ground past the canopy
+    /// (`detector.end_empty_m`); crop "appearing" inside that stretch contradicts what was seen (a
+    /// LiDAR pitched off its mount reads the far ground as canopy), crop beyond it was out of view.
     pub gap_margin_m: f64,
     /// Rows, of the lane's two and their outer neighbours (the rows the detector ends a lane on),
     /// that must hold crop past the row end for it to count as a gap. Default 2: a weed on one row
     /// line or a stray return is not a row running on.
     pub gap_rows: u32,
     /// Consecutive scans, each tracking the rows without confirming the end, that must show crop
-    /// past the row end before it is dropped as a gap (see the module docs); 0 makes the first end
-    /// seen final. Default 3 (0.3 s of scans at 10 Hz).
+    /// past the row end, standing still while the robot drives 0.5 m towards it, before the end is
+    /// dropped as a gap (see the module docs); 0 makes the first end seen final. Default 0 (off):
+    /// a LiDAR pitched 3° off its mount reads the ground at the scan's far edge as canopy past a
+    /// true row end, which this rule cannot tell from crop beyond a gap (the robot then followed
+    /// phantom rows out of the field, `fault-mount-error`); 3 (0.3 s of scans at 10 Hz) with a
+    /// well-calibrated mount.
     pub gap_confirmations: u32,
     /// Farthest a reported row end is believed past where the lane's end was first seen, m. A row
     /// end is a place: one that keeps moving away ahead of the robot is canopy seen everywhere (a
@@ -260,9 +298,9 @@ impl Default for LaneSwitchConfig {
             spacing_tolerance: 0.25,
             max_line_jump_m: 0.25,
             resume_confirmations: 5,
-            gap_margin_m: 0.5,
+            gap_margin_m: 1.0,
             gap_rows: 2,
-            gap_confirmations: 3,
+            gap_confirmations: 0,
             max_end_recession_m: 1.0,
             end_recession_scans: 5,
         }
@@ -581,6 +619,9 @@ pub struct LaneSwitcher {
     entry_anchored: bool,
     /// Consecutive scans that showed crop past the row end (see `gap_confirmations`).
     crop_past_end: u32,
+    /// The near edge of that crop past the end and where the robot was, m along past the end, at the
+    /// first of those scans.
+    gap_seen_from: Option<(f64, f64)>,
     /// Where the current row end was first seen (`odom`): the end is a place.
     end_anchor: Option<Pose2>,
     /// Row ends reported past `max_end_recession_m` from the anchor.
@@ -615,6 +656,7 @@ impl LaneSwitcher {
             entry_row_end_m: 0.0,
             entry_anchored: false,
             crop_past_end: 0,
+            gap_seen_from: None,
             end_anchor: None,
             receding: 0,
             cfg,
@@ -716,23 +758,49 @@ impl LaneSwitcher {
             self.crop_past_end = 0;
             return;
         };
-        // The row end was moved back from the detector's canopy end by `end_trim_m`; the last plants'
-        // centroids may lie up to a map bin past that canopy end.
+        // The row end was moved back from the detector's canopy end by `end_trim_m`. The last plants'
+        // centroids may lie up to a map bin past that canopy end; the detector saw the ground empty for
+        // `gap_margin_m` past it to call the end, so crop appearing there now is not believed (a
+        // tilted LiDAR reads the ground there as canopy once the robot nears it).
         let clear_m = self.end_trim_m + ROW_END_BIN_M;
-        let past_m = clear_m + self.cfg.gap_margin_m;
+        let past_m = self.end_trim_m + self.cfg.gap_margin_m;
         let confirmed = detection
             .row_end_ahead_m
             .filter(|a| a.is_finite())
             .is_some_and(|a| along(&end, &self.end_from(odom, a)) <= past_m);
         let points = centroids.iter().map(|c| odom.transform_point(c[0], c[1]));
-        let rows = rows_past_end(self.spacing_m(), &end, clear_m, past_m, GAP_ROWS, points);
-        self.crop_past_end =
-            if !confirmed && rows >= self.cfg.gap_rows { self.crop_past_end.saturating_add(1) } else { 0 };
+        let (rows, near_m) = rows_past_end(self.spacing_m(), &end, clear_m, past_m, GAP_ROWS, points);
+        let at_m = along(&end, odom);
+        if confirmed || rows < self.cfg.gap_rows {
+            self.crop_past_end = 0;
+            return;
+        }
+        // Crop that keeps its distance ahead of the robot is no place (the ground at the scan's far
+        // edge read as canopy by a pitched LiDAR): the count starts over whenever the crop's near edge
+        // moved out by more than a map bin since the first scan that showed it.
+        match self.gap_seen_from {
+            Some((first_near_m, _)) if self.crop_past_end > 0 && near_m <= first_near_m + ROW_END_BIN_M => {
+                self.crop_past_end = self.crop_past_end.saturating_add(1);
+            }
+            _ => {
+                self.gap_seen_from = Some((near_m, at_m));
+                self.crop_past_end = 1;
+            }
+        }
     }
 
-    /// True once `gap_confirmations` scans in a row showed crop past the row end.
+    /// True once `gap_confirmations` scans in a row showed crop past the row end, standing still
+    /// while the robot drove `GAP_TRAVEL_M` towards it (at the first pivot, where it stands, the
+    /// scans alone).
     fn gap_seen(&self) -> bool {
-        self.cfg.gap_confirmations > 0 && self.crop_past_end >= self.cfg.gap_confirmations
+        let travelled = |odom: &Pose2| {
+            self.gap_seen_from
+                .zip(self.row_end.or(self.exit_line))
+                .is_some_and(|((_, from_m), end)| along(&end, odom) - from_m >= GAP_TRAVEL_M)
+        };
+        self.cfg.gap_confirmations > 0
+            && self.crop_past_end >= self.cfg.gap_confirmations
+            && (self.mode == Mode::Turning || self.last_pose.as_ref().is_some_and(travelled))
     }
 
     /// True while the robot stands at the first pivot of a pivot turn, still heading within
@@ -1515,61 +1583,80 @@ mod tests {
         sw.update(&at, Some(&d)).mode
     }
 
+    /// The defaults with the gap rule on (3 scans).
+    fn gap_rule() -> LaneSwitchConfig {
+        LaneSwitchConfig { gap_confirmations: 3, ..LaneSwitchConfig::default() }
+    }
+
     #[test]
     fn crop_past_the_row_end_while_following_makes_it_a_gap() {
         // The canopy seemed to end at x = 3 (a stretch of every row missing); from x = 1.5 the lane's
-        // rows show crop again at x = 4.5, and the detector withdraws its end.
-        let (mut sw, _) = approach_end(LaneSwitchConfig::default(), &[[1.9, 0.37], [1.95, -0.37]], 1.5);
+        // rows show crop again at x = 4.5, 1.5 m past it, and the detector withdraws its end. Once
+        // the robot drove 0.5 m with the crop standing still, the end is dropped.
+        let (mut sw, _) = approach_end(gap_rule(), &[[1.9, 0.37], [1.95, -0.37]], 1.5);
         assert_eq!(sw.mode(), Mode::Following);
-        for k in 0..3 {
+        for k in 0..5 {
+            see_crop_past(&mut sw, 1.5 + 0.1 * k as f64, 1.0 + 0.1 * k as f64, 4.5, &[0.375, -0.375]);
             assert!(sw.row_end().is_some(), "dropped after {k} scans");
-            see_crop_past(&mut sw, 1.5 + 0.05 * k as f64, 1.0 + 0.1 * k as f64, 4.5, &[0.375, -0.375]);
         }
+        see_crop_past(&mut sw, 2.0, 1.5, 4.5, &[0.375, -0.375]);
         assert_eq!((sw.mode(), sw.row_end()), (Mode::Following, None));
         // Driving on across the gap, no turn starts where the end was.
         for k in 0..40 {
-            let x = 1.6 + 0.05 * k as f64;
+            let x = 2.1 + 0.05 * k as f64;
             let mode = sw.update(&Pose2::new(x, 0.0, 0.0), Some(&rows(2.0 + 0.1 * k as f64, 0.0))).mode;
             assert_eq!(mode, Mode::Following, "at x {x}");
         }
     }
 
     #[test]
+    fn crop_past_the_row_end_that_keeps_ahead_of_the_robot_is_no_gap() {
+        // A pitched LiDAR reads the ground 3.7 m ahead as canopy wherever the robot is: the end stays.
+        let (mut sw, _) = approach_end(gap_rule(), &[[1.9, 0.37], [1.95, -0.37]], 1.5);
+        for k in 0..10 {
+            let x = 1.5 + 0.1 * k as f64;
+            see_crop_past(&mut sw, x, 1.0 + 0.1 * k as f64, x + 3.7, &[0.375, -0.375]);
+        }
+        assert!(sw.row_end().is_some());
+    }
+
+    #[test]
     fn crop_past_the_row_end_while_clearing_it_cancels_the_turn() {
         // The robot reached the "end" at x = 3 and drives on to the pivot; the crop beyond the gap
         // comes into view on both lane rows: it follows again instead of turning.
-        let (mut sw, x) = approach_end(LaneSwitchConfig::default(), &[[1.9, 0.37], [1.95, -0.37]], 3.3);
+        let (mut sw, x) = approach_end(gap_rule(), &[[1.9, 0.37], [1.95, -0.37]], 3.3);
         assert_eq!(sw.mode(), Mode::ClearingRowEnd, "at x {x}");
-        let modes: Vec<Mode> = (0..3)
-            .map(|k| see_crop_past(&mut sw, x + 0.03 * k as f64, 2.0 + 0.1 * k as f64, 6.0, &[0.375, -0.375]))
+        let modes: Vec<Mode> = (0..7)
+            .map(|k| see_crop_past(&mut sw, x + 0.1 * k as f64, 2.0 + 0.1 * k as f64, 6.0, &[0.375, -0.375]))
             .collect();
-        assert_eq!(modes, [Mode::ClearingRowEnd, Mode::ClearingRowEnd, Mode::Following]);
-        assert_eq!(sw.row_end(), None);
-        assert_eq!(sw.lanes_completed(), 0);
+        assert_eq!(modes.last(), Some(&Mode::Following), "{modes:?}");
+        assert!(modes[..5].iter().all(|m| *m == Mode::ClearingRowEnd), "{modes:?}");
+        assert_eq!((sw.row_end(), sw.lanes_completed()), (None, 0));
     }
 
     #[test]
     fn crop_past_the_row_end_on_one_row_keeps_the_end() {
         // A weed on one row line (or the detector confirming its end) is not a row running on.
-        let (mut sw, x) = approach_end(LaneSwitchConfig::default(), &[[1.9, 0.37], [1.95, -0.37]], 3.3);
-        for k in 0..5 {
-            see_crop_past(&mut sw, x, 2.0 + 0.1 * k as f64, 6.0, &[0.375]);
-        }
-        let confirmed = Detection { row_end_ahead_m: Some(3.0 - x), ..rows(3.0, 0.0) };
-        for k in 0..5 {
-            sw.observe_canopy(&Pose2::new(x, 0.0, 0.0), &confirmed, &[[6.0 - x, 0.375], [6.0 - x, -0.375]]);
-            sw.update(
-                &Pose2::new(x, 0.0, 0.0),
-                Some(&Detection { stamp_s: 3.0 + 0.1 * k as f64, ..confirmed }),
-            );
+        let (mut sw, x) = approach_end(gap_rule(), &[[1.9, 0.37], [1.95, -0.37]], 3.3);
+        for k in 0..7 {
+            see_crop_past(&mut sw, x + 0.1 * k as f64, 2.0 + 0.1 * k as f64, 6.0, &[0.375]);
         }
         assert_eq!(sw.mode(), Mode::ClearingRowEnd);
+        let x = x + 0.7;
+        let confirmed = Detection { row_end_ahead_m: Some(3.0 - x), ..rows(3.0, 0.0) };
+        for k in 0..5 {
+            let at = Pose2::new(x + 0.1 * k as f64, 0.0, 0.0);
+            let crop = [[6.0 - at.x, 0.375], [6.0 - at.x, -0.375]];
+            sw.observe_canopy(&at, &confirmed, &crop);
+            sw.update(&at, Some(&Detection { stamp_s: 3.0 + 0.1 * k as f64, ..confirmed }));
+        }
         assert!(sw.row_end().is_some());
+        assert_ne!(sw.mode(), Mode::Following);
     }
 
     #[test]
     fn crop_past_the_row_end_at_the_first_pivot_stops_the_turn() {
-        let (mut sw, x) = approach_end(LaneSwitchConfig::default(), &[[1.9, 0.37], [1.95, -0.37]], 6.0);
+        let (mut sw, x) = approach_end(gap_rule(), &[[1.9, 0.37], [1.95, -0.37]], 6.0);
         assert_eq!((sw.mode(), sw.lanes_completed()), (Mode::Turning, 1), "at x {x}");
         // Pivoting on the spot, 0.2 rad round, the scan still looks past the end.
         let at = Pose2::new(x, 0.0, -0.2);
@@ -1587,6 +1674,15 @@ mod tests {
         // The lane was not done, and the stop waits for a person.
         assert_eq!(sw.lanes_completed(), 0);
         assert!(!StopReason::CropPastRowEnd.clears_by_itself());
+    }
+
+    #[test]
+    fn by_default_the_first_row_end_seen_is_final() {
+        let (mut sw, x) = approach_end(LaneSwitchConfig::default(), &[[1.9, 0.37], [1.95, -0.37]], 3.3);
+        for k in 0..10 {
+            see_crop_past(&mut sw, x + 0.1 * k as f64, 2.0 + 0.1 * k as f64, 6.0, &[0.375, -0.375]);
+        }
+        assert!(matches!(sw.mode(), Mode::ClearingRowEnd | Mode::Turning), "{:?}", sw.mode());
     }
 
     #[test]

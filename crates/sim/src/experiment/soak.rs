@@ -243,6 +243,10 @@ fn draw_faults(rng: &mut ChaCha8Rng, s: &mut Scenario, run: &mut RunConfig, lane
                 format!("weeds {} m tall over {} m from x {from} m", w.height_m, w.length_m)
             }
             4 => {
+                // 1-4 m: longer than the detector's 1 m of empty ground that ends a row, and shorter
+                // than the 5.6 m the scan sees past a row end from the first pivot, so a stretch missing
+                // from every row must be crossed, not turned at (a longer one would look like the
+                // headland; see `croprow_core::control::lane_switch`).
                 let g = &mut f.row_gap;
                 (g.enabled, g.from_x_m, g.length_m) = (true, from, round(rng.random_range(1.0..=4.0), 0.1));
                 g.rows = match rng.random_range(0..3) {
