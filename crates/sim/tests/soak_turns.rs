@@ -95,7 +95,7 @@ fn a_row_end_that_recedes_with_a_tilted_lidar_stops_the_robot() {
     // Young soybean, the LiDAR mount off by (1.8, -0.8, -2.3)°: past the crop the ground read as
     // canopy, the row end stayed 2-3 m ahead of the robot wherever it went, and the robot followed
     // phantom rows round a 14 m circle outside the field for 80 m, then turned into the crop
-    // (12 plants). Now an end that moves away more than 1 m past where it was first seen stops it.
+    // (12 plants). Now an end that moves away more than 2 m past where it was first seen stops it.
     let o = safe_run(948, "young soybean 12.5 m x 7 rows 0.75 m apart");
     assert_eq!(o.end, "stopped: row_end_receding", "{o:?}");
     assert!(o.distance_m < 13.0, "{o:?}");
