@@ -72,6 +72,10 @@ const MIN_PERIODICITY: f64 = 0.15;
 /// ground is taken to repeat only every second canopy period (see [`Lanes::search`]).
 const MIN_GROUND_POINTS: f64 = 200.0;
 const GROUND_HALF_PERIOD_RATIO: f64 = 0.5;
+/// Largest distance of the lane centre from the robot for a start-up hypothesis, in row spacings: a
+/// wider one puts the robot's centre on a row (within a twentieth of a spacing). Not tighter: a robot
+/// may start well off its lane centre (the `recovery` runs start 0.4 spacings off).
+const MAX_START_OFFSET: f64 = 0.45;
 /// Fewest pairs of canopy bins (2 cm each) for the envelope's autocorrelation at a lag to count: half a
 /// metre of canopy seen at both ends of the lag.
 const MIN_ENVELOPE_PAIRS: usize = 25;
@@ -216,6 +220,8 @@ pub(crate) struct Lanes {
     /// whether the bin holds canopy at all.
     envelope: Vec<f64>,
     filled: Vec<bool>,
+    /// Along-x slices holding canopy per lateral bin (start-up search).
+    occupancy: Vec<f64>,
     /// Highest canopy point per along-x slice and lateral bin, slice-major (0: none).
     slices: Vec<f64>,
     /// Centroids of the fit, `[x, y, weight]` in `base_link`.
@@ -247,6 +253,7 @@ impl Lanes {
             returns: vec![0.0; HIST_BINS],
             envelope: vec![0.0; HIST_BINS],
             filled: vec![false; HIST_BINS],
+            occupancy: vec![0.0; HIST_BINS],
             slices: vec![0.0; ENVELOPE_SLICES * HIST_BINS],
             local: Vec::with_capacity(config.map_capacity + ROWS * x_bins),
             current: Vec::with_capacity(ROWS * x_bins),
@@ -362,21 +369,28 @@ impl Lanes {
     /// spacing. When it repeats at about twice the canopy's period and not at the period itself, the
     /// spacing is the ground's period. The lane centre is the gap between canopy crests nearest the
     /// robot either way: the search assumes the robot starts within a quarter spacing of its lane
-    /// centre (between its two rows).
+    /// centre (between its two rows), and finds nothing when the nearest gap is more than
+    /// [`MAX_START_OFFSET`] spacings away or the sharpest heading is at the edge of the search.
     fn search(&mut self, canopy: &[[f32; 3]], cropped: &[[f32; 3]], config: &DetectorConfig) -> Option<Lane> {
         if canopy.len() < MIN_SEARCH_POINTS {
             return None;
         }
         let stride = (canopy.len() / 3000).max(1);
         let steps = config.heading_search_deg.round() as i32;
-        let mut best = (f64::NEG_INFINITY, 0.0);
+        let mut best = (f64::NEG_INFINITY, 0.0, 0);
         for k in -steps..=steps {
             let a = (k as f64).to_radians().tan();
             self.fill_hist(canopy, a, stride);
             let score: f64 = self.hist.iter().map(|c| c * c).sum();
             if score > best.0 {
-                best = (score, a);
+                best = (score, a, k);
             }
+        }
+        if steps > 0 && best.2.abs() == steps {
+            // The sharpest heading at the edge of the range is no peak: the rows lie beyond the search,
+            // or (under a closed canopy, soak seed 92) no heading is sharper than another and the edge
+            // won by noise. Either way there is no heading to report.
+            return None;
         }
         let a = best.1;
         self.fill_hist(canopy, a, 1);
@@ -396,7 +410,11 @@ impl Lanes {
             (Some(s), _) => {
                 let ground_points = self.fill_ground(canopy, cropped, a);
                 // The lane centre lies between two canopy crests; of those gaps the one nearest the robot.
-                let o = Lane { o: circular_mean(&self.hist, s) + 0.5 * s, a, b: 0.0, s, crests: 1.0 }
+                // The crests are where canopy runs on along the rows, counted per slice along x, not
+                // weighted by height: a patch of weeds taller than a young crop in every inter-row makes
+                // a second lattice half a spacing off, tall but short-lived (soak seed 451).
+                self.fill_occupancy();
+                let o = Lane { o: circular_mean(&self.occupancy, s) + 0.5 * s, a, b: 0.0, s, crests: 1.0 }
                     .normalised()
                     .o;
                 match ground_period(&self.ground, ground_points, s, config) {
@@ -411,7 +429,11 @@ impl Lanes {
             (None, None) => return None,
         }
         .normalised();
-        lane.is_sane(config).then_some(lane)
+        // A lattice whose nearest gap is not under the robot is the wrong one: a robot standing among
+        // the plants has its centre between two rows, and tall weeds in every inter-row make a second
+        // lattice half a spacing off the crop's (soak seed 451: the lane centre was put on a row).
+        let centred = lane.o.abs() <= MAX_START_OFFSET * lane.spacing_m();
+        (centred && lane.is_sane(config)).then_some(lane)
     }
 
     /// The canopy's upper envelope across the rows along heading slope `a`: per lateral bin, the mean
@@ -452,6 +474,16 @@ impl Lanes {
             *h = if *f { *h - mean } else { 0.0 };
         }
         first.map_or(0.0, |first| n / (last + 1 - first) as f64)
+    }
+
+    /// Lateral profile of canopy continuity from the slices [`Lanes::fill_envelope`] filled: per lateral
+    /// bin, the number of along-x slices holding canopy.
+    fn fill_occupancy(&mut self) {
+        for (i, o) in self.occupancy.iter_mut().enumerate() {
+            *o = (0..ENVELOPE_SLICES)
+                .filter(|k| self.slices.get(k * HIST_BINS + i).is_some_and(|&h| h > 0.0))
+                .count() as f64;
+        }
     }
 
     /// Lateral profile of the share of returns that reach the ground (cropped points that are not
@@ -979,6 +1011,14 @@ mod tests {
         }
         let lane = Lanes::new(&cfg).search(&canopy, &cropped, &cfg).unwrap();
         assert!((lane.spacing_m() - 0.375).abs() < 0.02, "{lane:?}");
+    }
+
+    #[test]
+    fn search_finds_nothing_when_the_sharpest_heading_is_the_edge() {
+        // Rows at 25°, beyond the 20° searched: the edge scores best, and that is no peak.
+        let cfg = DetectorConfig::default();
+        let pts = rows_of_points(&[-1.025, -0.275, 0.475, 1.225], 25f64.to_radians());
+        assert_eq!(Lanes::new(&cfg).search(&pts, &pts, &cfg), None);
     }
 
     #[test]
