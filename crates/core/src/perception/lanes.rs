@@ -220,8 +220,6 @@ pub(crate) struct Lanes {
     /// whether the bin holds canopy at all.
     envelope: Vec<f64>,
     filled: Vec<bool>,
-    /// Along-x slices holding canopy per lateral bin (start-up search).
-    occupancy: Vec<f64>,
     /// Highest canopy point per along-x slice and lateral bin, slice-major (0: none).
     slices: Vec<f64>,
     /// Centroids of the fit, `[x, y, weight]` in `base_link`.
@@ -253,7 +251,6 @@ impl Lanes {
             returns: vec![0.0; HIST_BINS],
             envelope: vec![0.0; HIST_BINS],
             filled: vec![false; HIST_BINS],
-            occupancy: vec![0.0; HIST_BINS],
             slices: vec![0.0; ENVELOPE_SLICES * HIST_BINS],
             local: Vec::with_capacity(config.map_capacity + ROWS * x_bins),
             current: Vec::with_capacity(ROWS * x_bins),
@@ -410,11 +407,7 @@ impl Lanes {
             (Some(s), _) => {
                 let ground_points = self.fill_ground(canopy, cropped, a);
                 // The lane centre lies between two canopy crests; of those gaps the one nearest the robot.
-                // The crests are where canopy runs on along the rows, counted per slice along x, not
-                // weighted by height: a patch of weeds taller than a young crop in every inter-row makes
-                // a second lattice half a spacing off, tall but short-lived (soak seed 451).
-                self.fill_occupancy();
-                let o = Lane { o: circular_mean(&self.occupancy, s) + 0.5 * s, a, b: 0.0, s, crests: 1.0 }
+                let o = Lane { o: circular_mean(&self.hist, s) + 0.5 * s, a, b: 0.0, s, crests: 1.0 }
                     .normalised()
                     .o;
                 match ground_period(&self.ground, ground_points, s, config) {
@@ -474,16 +467,6 @@ impl Lanes {
             *h = if *f { *h - mean } else { 0.0 };
         }
         first.map_or(0.0, |first| n / (last + 1 - first) as f64)
-    }
-
-    /// Lateral profile of canopy continuity from the slices [`Lanes::fill_envelope`] filled: per lateral
-    /// bin, the number of along-x slices holding canopy.
-    fn fill_occupancy(&mut self) {
-        for (i, o) in self.occupancy.iter_mut().enumerate() {
-            *o = (0..ENVELOPE_SLICES)
-                .filter(|k| self.slices.get(k * HIST_BINS + i).is_some_and(|&h| h > 0.0))
-                .count() as f64;
-        }
     }
 
     /// Lateral profile of the share of returns that reach the ground (cropped points that are not
