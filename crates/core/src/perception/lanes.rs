@@ -72,6 +72,10 @@ const MIN_PERIODICITY: f64 = 0.15;
 /// ground is taken to repeat only every second canopy period (see [`Lanes::search`]).
 const MIN_GROUND_POINTS: f64 = 200.0;
 const GROUND_HALF_PERIOD_RATIO: f64 = 0.5;
+/// Largest distance of the lane centre from the robot for a start-up hypothesis, in row spacings: a
+/// wider one puts the robot's centre on a row (within a twentieth of a spacing). Not tighter: a robot
+/// may start well off its lane centre (the `recovery` runs start 0.4 spacings off).
+const MAX_START_OFFSET: f64 = 0.45;
 /// Fewest pairs of canopy bins (2 cm each) for the envelope's autocorrelation at a lag to count: half a
 /// metre of canopy seen at both ends of the lag.
 const MIN_ENVELOPE_PAIRS: usize = 25;
@@ -362,21 +366,28 @@ impl Lanes {
     /// spacing. When it repeats at about twice the canopy's period and not at the period itself, the
     /// spacing is the ground's period. The lane centre is the gap between canopy crests nearest the
     /// robot either way: the search assumes the robot starts within a quarter spacing of its lane
-    /// centre (between its two rows).
+    /// centre (between its two rows), and finds nothing when the nearest gap is more than
+    /// [`MAX_START_OFFSET`] spacings away or the sharpest heading is at the edge of the search.
     fn search(&mut self, canopy: &[[f32; 3]], cropped: &[[f32; 3]], config: &DetectorConfig) -> Option<Lane> {
         if canopy.len() < MIN_SEARCH_POINTS {
             return None;
         }
         let stride = (canopy.len() / 3000).max(1);
         let steps = config.heading_search_deg.round() as i32;
-        let mut best = (f64::NEG_INFINITY, 0.0);
+        let mut best = (f64::NEG_INFINITY, 0.0, 0);
         for k in -steps..=steps {
             let a = (k as f64).to_radians().tan();
             self.fill_hist(canopy, a, stride);
             let score: f64 = self.hist.iter().map(|c| c * c).sum();
             if score > best.0 {
-                best = (score, a);
+                best = (score, a, k);
             }
+        }
+        if steps > 0 && best.2.abs() == steps {
+            // The sharpest heading at the edge of the range is no peak: the rows lie beyond the search,
+            // or (under a closed canopy, soak seed 92) no heading is sharper than another and the edge
+            // won by noise. Either way there is no heading to report.
+            return None;
         }
         let a = best.1;
         self.fill_hist(canopy, a, 1);
@@ -411,7 +422,11 @@ impl Lanes {
             (None, None) => return None,
         }
         .normalised();
-        lane.is_sane(config).then_some(lane)
+        // A lattice whose nearest gap is not under the robot is the wrong one: a robot standing among
+        // the plants has its centre between two rows, and tall weeds in every inter-row make a second
+        // lattice half a spacing off the crop's (soak seed 451: the lane centre was put on a row).
+        let centred = lane.o.abs() <= MAX_START_OFFSET * lane.spacing_m();
+        (centred && lane.is_sane(config)).then_some(lane)
     }
 
     /// The canopy's upper envelope across the rows along heading slope `a`: per lateral bin, the mean
@@ -979,6 +994,14 @@ mod tests {
         }
         let lane = Lanes::new(&cfg).search(&canopy, &cropped, &cfg).unwrap();
         assert!((lane.spacing_m() - 0.375).abs() < 0.02, "{lane:?}");
+    }
+
+    #[test]
+    fn search_finds_nothing_when_the_sharpest_heading_is_the_edge() {
+        // Rows at 25°, beyond the 20° searched: the edge scores best, and that is no peak.
+        let cfg = DetectorConfig::default();
+        let pts = rows_of_points(&[-1.025, -0.275, 0.475, 1.225], 25f64.to_radians());
+        assert_eq!(Lanes::new(&cfg).search(&pts, &pts, &cfg), None);
     }
 
     #[test]

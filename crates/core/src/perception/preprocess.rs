@@ -6,7 +6,8 @@
 //! `v⊥ = R_y,θ · [0 0 1]ᵀ` reads once the mount rotation is applied) and sits at the height of the
 //! centroid of the cropped points (eqs. 1-2), raised by `plane_raise_m`. The default mode instead places
 //! it halfway between robust ground and canopy-top levels (5th and 95th height percentiles), which keeps
-//! low weeds and ground noise out even when most returns come from the ground.
+//! low weeds and ground noise out even when most returns come from the ground, and drops returns
+//! floating more than [`ABOVE_TOP_M`] above the canopy top (dust, insects).
 
 use crate::geometry::{Mount, Point3};
 
@@ -16,6 +17,13 @@ use super::config::DetectorConfig;
 const Z_BIN_M: f32 = 0.01;
 const Z_MIN_M: f32 = -2.0;
 const Z_BINS: usize = 500;
+/// Default mode: returns more than this above the 95th height percentile are not canopy, m. A crop's
+/// top is a continuous surface whose highest returns lie within centimetres of that percentile; a
+/// return floating well above it is dust, an insect or a bird, and its height-squared weight in the
+/// row fit would outweigh dozens of plant returns (soak seed 561: 56 such returns per scan turned the
+/// start-up heading by 10°). Not lower: 0.3 m cut into the tops of a grown soybean canopy and a lane
+/// re-entry was refused as the wrong lane (`soak_acquire`, seed 11).
+const ABOVE_TOP_M: f32 = 0.5;
 
 /// `base_link -> sensor` as f32 for the per-point loop.
 #[derive(Debug, Clone, Copy)]
@@ -112,17 +120,21 @@ impl Preprocessor {
             self.plane_z_m = 0.0;
             return finite;
         }
-        let base = match rule {
-            PlaneRule::Centroid => (z_sum / self.cropped.len() as f64) as f32,
-            PlaneRule::Percentile => self.percentile_midpoint(config.min_plant_height_m as f32),
+        let (base, top) = match rule {
+            PlaneRule::Centroid => ((z_sum / self.cropped.len() as f64) as f32, f32::INFINITY),
+            PlaneRule::Percentile => self.percentile_levels(config.min_plant_height_m as f32),
         };
         self.plane_z_m = base + config.plane_raise_m as f32;
         let plane = self.plane_z_m;
-        self.canopy.extend(self.cropped.iter().filter(|p| p[2] > plane).map(|p| [p[0], p[1], p[2] - plane]));
+        self.canopy.extend(
+            self.cropped.iter().filter(|p| p[2] > plane && p[2] <= top).map(|p| [p[0], p[1], p[2] - plane]),
+        );
         finite
     }
 
-    fn percentile_midpoint(&mut self, min_height_m: f32) -> f32 {
+    /// The canopy plane (halfway between the 5th and 95th height percentiles, at least `min_height_m`
+    /// above the 5th) and the highest canopy return believed ([`ABOVE_TOP_M`] over the 95th).
+    fn percentile_levels(&mut self, min_height_m: f32) -> (f32, f32) {
         self.z_hist.iter_mut().for_each(|c| *c = 0);
         for p in &self.cropped {
             let i = ((p[2] - Z_MIN_M) / Z_BIN_M).clamp(0.0, (Z_BINS - 1) as f32) as usize;
@@ -133,7 +145,8 @@ impl Preprocessor {
         let n = self.cropped.len() as u64;
         let (lo, hi) = (quantile_bin(&self.z_hist, n, 5), quantile_bin(&self.z_hist, n, 95));
         let ground = Z_MIN_M + Z_BIN_M * (lo as f32 + 0.5);
-        (Z_MIN_M + Z_BIN_M * (lo + hi + 1) as f32 * 0.5).max(ground + min_height_m)
+        let top = Z_MIN_M + Z_BIN_M * (hi as f32 + 1.0) + ABOVE_TOP_M;
+        ((Z_MIN_M + Z_BIN_M * (lo + hi + 1) as f32 * 0.5).max(ground + min_height_m), top)
     }
 }
 
@@ -195,5 +208,23 @@ mod tests {
         pre.run(&pts, &mount, &cfg, PlaneRule::Percentile);
         assert!((pre.plane_z_m - 0.2).abs() < 0.02, "{}", pre.plane_z_m);
         assert_eq!(pre.canopy.len(), 10);
+    }
+
+    #[test]
+    fn returns_floating_above_the_canopy_are_not_canopy() {
+        // 90 ground points, 10 plant tops at 0.4 m and one return at 1.2 m (0.8 m above the 95th
+        // percentile, over the 0.5 m allowed): the plant tops stay, the floating return goes.
+        let mount = Mount::default();
+        let cfg = DetectorConfig::default();
+        let mut pts = Vec::new();
+        for i in 0..100 {
+            let z = if i % 10 == 0 { 0.4 } else { 0.0 };
+            pts.push(sensor_point(&mount, [2.0 + 0.01 * i as f64, 0.0, z]));
+        }
+        pts.push(sensor_point(&mount, [2.5, 0.2, 1.2]));
+        let mut pre = Preprocessor::new(8);
+        pre.run(&pts, &mount, &cfg, PlaneRule::Percentile);
+        assert_eq!(pre.canopy.len(), 10);
+        assert!(pre.canopy.iter().all(|p| p[2] < 0.3), "{:?}", pre.canopy);
     }
 }

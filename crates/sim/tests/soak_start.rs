@@ -1,0 +1,26 @@
+//! Soak seeds whose robot ran over plants within its first 1.5 m (issue 6): the start-up search of
+//! the detector locked onto something that was not the crop's lattice and the robot followed it. Each
+//! test replays the seed's case as `soak_case` draws it, faults included, and asserts no contact.
+//! The summary check catches a generator that changed.
+
+use croprow_sim::experiment::soak::{Outcome, run_case, soak_case};
+
+fn run_seed(seed: u64, summary: &str) -> Outcome {
+    let case = soak_case(seed);
+    assert!(case.scenario.summary.starts_with(summary), "{}", case.scenario.summary);
+    run_case(&case).expect("runs")
+}
+
+#[test]
+fn closed_canopy_start_does_not_take_the_edge_of_the_heading_search() {
+    // Grown soybean: no heading is sharper than another, and 20° (the edge) won by noise.
+    let o = run_seed(92, "grown soybean 13.6 m x 5 rows 0.71 m");
+    assert_eq!((o.crop_contacts, o.unsafe_commands), (0, 0), "{o:?}");
+}
+
+#[test]
+fn spurious_returns_above_the_canopy_do_not_turn_the_start_heading() {
+    // Young corn with 56 returns per scan 0.8-1.4 m up: their height-squared weight turned the heading 10°.
+    let o = run_seed(561, "young corn 14.7 m x 7 rows 0.76 m");
+    assert_eq!((o.crop_contacts, o.unsafe_commands), (0, 0), "{o:?}");
+}
