@@ -457,10 +457,6 @@ impl Ekf {
             && sigmas > self.cfg.bias_check_threshold
         {
             c.steps = c.steps.saturating_add(1);
-            eprintln!(
-                "DBG step t {stamp_s:.1} error {error:.4} n {n} sigmas {sigmas:.1} blocks {:.4?}",
-                &c.blocks[..c.len]
-            );
             c.clear_blocks();
             c.relearn = self.cfg.bias_check_blocks;
             self.p[(B, B)] += error * error;
