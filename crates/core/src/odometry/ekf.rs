@@ -14,7 +14,7 @@
 //! how fast that gyro says the robot turns (a robot following rows holds its heading); a block counts
 //! only for what both show, so that wheels slipping on wet soil are not taken for a gyro fault. When
 //! the mean of the newest n blocks (2 to `ekf.bias_check_blocks`: a step may have come in any; one
-//! block alone may be a clod) lies more than `ekf.bias_check_threshold` standard deviations of a
+//! block alone may be a clod, so each must show at least half the mean, with its sign) lies more than `ekf.bias_check_threshold` standard deviations of a
 //! healthy block (`ekf.bias_check_block_std_radps`) over √n from zero, the bias has stepped: its
 //! variance grows by the step's square, that mean is fused as a measurement of it, and so is each of
 //! the next `ekf.bias_check_blocks` blocks. The pose is left where it is (`odom` stays continuous);
@@ -52,7 +52,8 @@ const MAX_BIAS_BLOCKS: usize = 8;
 /// off by its tyres' slip and scrub, tens of percent of the rate (0.3 on wet soil), and a 2 s block at
 /// 0.1 rad/s then looked like a 0.03 rad/s step (measured in `fault-slip-patch`).
 const BIAS_CHECK_MAX_YAW_RATE_RADPS: f64 = 0.05;
-/// Fewest blocks that may show a step: one block alone may be a clod or a slip, a step persists.
+/// Fewest blocks that may show a step: one block alone may be a clod or a slip, a step persists (each
+/// block of the window must show at least half the window's mean, with its sign).
 const BIAS_CHECK_MIN_BLOCKS: usize = 2;
 /// ... and only while moving, m/s: at rest the wheels are trusted and the filter learns the bias itself.
 const BIAS_CHECK_MIN_SPEED_MPS: f64 = 0.1;
@@ -446,11 +447,13 @@ impl Ekf {
         let mut sum = 0.0;
         for (i, m) in c.blocks.iter().take(c.len).enumerate() {
             sum += m;
-            if i + 1 < BIAS_CHECK_MIN_BLOCKS {
-                continue;
-            }
             let n = (i + 1) as f64;
             let mean = sum / n;
+            // A step shows in every block after it: a window held up by one large block is not one.
+            let persistent = c.blocks[..=i].iter().all(|b| b * mean > 0.0 && b.abs() >= 0.5 * mean.abs());
+            if i + 1 < BIAS_CHECK_MIN_BLOCKS || !persistent {
+                continue;
+            }
             let sigmas = mean.abs() * n.sqrt() / std;
             if best.is_none_or(|(s, _, _)| sigmas > s) {
                 best = Some((sigmas, mean, n));
