@@ -104,13 +104,15 @@ pub struct EkfConfig {
     /// step is this times `bias_check_block_s`. Default 5 (10 s, 5 m at 0.5 m/s).
     pub bias_check_blocks: u32,
     /// Standard deviation of what one block counts for (see the module docs) when nothing is wrong,
-    /// rad/s. Default 0.003: twice the 0.0011-0.0017 rad/s measured on healthy closed-loop lanes of
-    /// the simulated skid-steer (`crates/sim/tests/faults.rs`, wet soil included; its wheels alone
-    /// disagree with the gyro by 0.0085-0.01 rad/s per block).
+    /// rad/s. Default 0.0075: the simulated skid-steer's wheels disagree with the gyro by 0.0085-0.01
+    /// rad/s per block on healthy closed-loop lanes (`crates/sim/tests/faults.rs`), and a block counts
+    /// for no more than that disagreement. A robot holding its heading shows far less (0.0011-0.0017
+    /// rad/s measured), but one that turns (curved rows, a driver wandering over the lane) shows the
+    /// wheels' full disagreement: 0.003 moved Table I (curved-corn following 0.59 -> 2.75 cm).
     pub bias_check_block_std_radps: f64,
     /// How many standard deviations of the averaged blocks count as a bias step; 0 turns the check
-    /// off. Default 4: with blocks of σ 0.003 rad/s a step of 0.0085 rad/s is found after 2 blocks
-    /// (4 s), 0.0054 rad/s after 5 (10 s).
+    /// off. Default 4: with blocks of σ 0.0075 rad/s a step of 0.021 rad/s is found after 2 blocks
+    /// (4 s), 0.0134 rad/s after 5 (10 s).
     pub bias_check_threshold: f64,
 }
 
@@ -130,7 +132,7 @@ impl Default for EkfConfig {
             max_lag_s: 0.0,
             bias_check_block_s: 2.0,
             bias_check_blocks: 5,
-            bias_check_block_std_radps: 0.003,
+            bias_check_block_std_radps: 0.0075,
             bias_check_threshold: 4.0,
         }
     }
@@ -665,14 +667,13 @@ mod tests {
     }
 
     #[test]
-    fn a_bias_step_while_driving_straight_is_found_within_six_seconds_and_learnt_within_fifteen() {
+    fn a_bias_step_while_driving_straight_is_found_within_ten_seconds_and_learnt_within_fifteen() {
         let (ekf, biases) = drive_straight(closed_loop_cfg(), 0.02, 10.0, 30.0);
         eprintln!("bias each second: {biases:.4?}");
-        // The step is found within 6 s (two 2 s blocks; the estimate then holds most of it), and 15 s
-        // after it (t = 25 s) the estimate is within 0.003 rad/s (one block's σ) of the 0.025 rad/s
-        // truth, and stays there. Measured on seeds 1-6: found 4 s after the step, 15 s after it
-        // 0.0006-0.002 rad/s off.
-        assert!(biases[16] > 0.012, "{:.4}", biases[16]);
+        // The step is found within 10 s (five 2 s blocks at most; the estimate then holds most of
+        // it), and 15 s after it (t = 25 s) the estimate is within 0.003 rad/s of the 0.025 rad/s
+        // truth, and stays there. Measured: found 9 s after the step, 0.0014 rad/s off 15 s after it.
+        assert!(biases[20] > 0.012, "{:.4}", biases[20]);
         let late = &biases[25..];
         assert!(late.iter().all(|b| (b - 0.025).abs() < 0.003), "{late:.4?}");
         assert!(ekf.bias_steps() >= 1);
