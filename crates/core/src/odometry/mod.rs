@@ -10,8 +10,9 @@
 //! assert!(ekf.pose().x > 0.0);
 //! ```
 //!
-//! What the wheels and the gyro cannot see (a sideways slide, a gyro bias step) is estimated from the
-//! crop rows by [`Drift`] and removed in the navigator's own frame, `nav`.
+//! A gyro bias that steps while driving is found by the EKF's bias check (the wheels and the gyro
+//! disagree persistently) and relearnt. What the wheels and the gyro cannot see (a sideways slide) is
+//! estimated from the crop rows by [`Drift`] and removed in the navigator's own frame, `nav`.
 
 mod drift;
 mod ekf;
