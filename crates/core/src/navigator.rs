@@ -258,10 +258,10 @@ impl Navigator {
     /// Feeds the drift estimator the centre line of a detection the robot follows: both rows tracked,
     /// at the lane's spacing, no row end before the anchor, within `lane_switch.max_line_jump_m` of
     /// the path followed at the robot (a line of another lane teaches nothing). Anything else, or any
-    /// other mode, restarts its comparison.
+    /// other mode, restarts its comparison; any other mode leaves the lane (drops the slide).
     fn learn_drift(&mut self, mode: Mode, pose: &Pose2, detection: Option<&Detection>) {
         if mode != Mode::Following {
-            self.drift.forget_line();
+            self.drift.leave_lane();
             return;
         }
         let Some(d) = detection else { return };
