@@ -29,7 +29,9 @@ fn a_simulated_recording_replays_to_the_same_rows() {
     let out = temp("out");
     let mcap = temp("run.mcap");
     let rows = temp("rows.jsonl");
-    // No standstill: the navigator sees every scan, as `croprow detect` does.
+    // No standstill: the navigator sees every scan, as `croprow detect` does. No drift estimator: the
+    // navigator would map in `nav` (odom minus the learned slide), while `croprow detect` replays the
+    // detector alone on the recording's odometry.
     let sim = croprow(&[
         "simulate",
         "--scenario",
@@ -42,6 +44,8 @@ fn a_simulated_recording_replays_to_the_same_rows() {
         "run.lanes=1",
         "--set",
         "run.standstill_s=0",
+        "--set",
+        "drift.enabled=false",
         "--mcap",
         mcap.to_str().unwrap(),
     ]);

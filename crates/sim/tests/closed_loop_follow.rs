@@ -48,11 +48,9 @@ fn grown_soybean_follows_within_the_measured_bound() {
     // Known gap (issue 4): the paper reports 1.24 cm over 200 m; this 20 m run measures 1.37 cm. It was
     // 1.52 cm while the simulator's EKF trusted the wheel yaw rate in turns (`ekf.wheel_yaw_rate_slip`
     // 0.3, see `closed_loop::sim_navigator`): the scrubbing tyres over-read the corrections made at the
-    // start of a lane on the closed canopy. The drift estimator (on by default since it saves most of the
-    // plants wheel slides cost in the soak) reads the closed canopy's fit noise at the start of the lane
-    // as a little slide: 1.56 cm with it, 1.37 cm without (on 200 m it is better: 1.07 against 1.09 cm).
-    // This bound guards what is measured now against regressions; beating 1.24 cm on short runs is open.
-    beats_the_paper("grown-soybean", 1.6);
+    // start of a lane on the closed canopy. This bound guards what is measured now against regressions;
+    // beating 1.24 cm on short runs is open work.
+    beats_the_paper("grown-soybean", 1.4);
 }
 
 #[test]

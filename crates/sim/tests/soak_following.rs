@@ -2,7 +2,7 @@
 //! kept as a regression named after what it guards. Each case is the seed's field, mission and faults
 //! as `soak_case` draws them, cut to its first lane (where the contacts began); it runs once with the
 //! guard under test off, where it must still run over plants (so the test can fail), and once with it
-//! on, where it must not. The guard is the drift estimator (`drift.enabled`, on by default; see
+//! on, where it must not. The guard is the drift estimator (`drift.enabled`, off by default; see
 //! `croprow_core::odometry::DriftConfig::enabled`).
 
 use croprow_sim::experiment::soak::{Case, Outcome, run_case, soak_case};

@@ -2,7 +2,8 @@
 //!
 //! Each scan of the cloud topic is decoded, paired with the odometry pose interpolated to its stamp and
 //! the sensor mount from `/tf_static` (else the config's `[mount]`, the paper's by default), and given
-//! to [`RowDetector`]. One JSON object per scan is written and flushed at once, so a fault part-way
+//! to [`RowDetector`] alone: its centroid map lives in the recording's `odom` (the navigator's drift
+//! estimator, which maps in `odom` minus a learned wheel slide, is not run). One JSON object per scan is written and flushed at once, so a fault part-way
 //! keeps every line before it; the fault then ends the command with a non-zero exit.
 //!
 //! Output line (rows in `base_link`, m):
