@@ -60,9 +60,12 @@ fn a_neighbouring_row_longer_than_the_lane_is_cleared() {
 fn an_unconfirmed_lane_is_not_entered_on_odometry_alone() {
     // Grown corn with spurious returns: after the turn the detector saw the canopy at half its period,
     // so the lane was never confirmed, and the robot drove 2 m on odometry into the crop 0.23 m off the
-    // lane (5 plants). Now its front tyres stop short of the plants.
+    // lane (5 plants). Then its front tyres stopped short of the plants (`reentry_not_confirmed`);
+    // since the start-up search refuses a heading at its edge the detector confirms this lane and the
+    // run is done. Either is safe (`safe_run` asserts no contact); driving on blind is not.
     let o = safe_run(26, "grown corn 11.3 m x 7 rows 0.70 m apart");
-    assert_eq!(o.end, "stopped: reentry_not_confirmed", "{o:?}");
+    let done = (o.end.as_str(), o.lanes_completed) == ("done", 2);
+    assert!(done || o.end == "stopped: reentry_not_confirmed", "{o:?}");
 }
 
 /// Runs the soak case of `seed` with the lane switcher's gap rule on (`lane_switch.gap_confirmations`
