@@ -17,15 +17,18 @@ fn first_lane(seed: u64, summary: &str) -> Case {
     case
 }
 
+/// Runs `case` with the drift estimator on or off.
+fn run_with_drift(case: &Case, enabled: bool) -> Outcome {
+    let mut case = case.clone();
+    case.navigator.drift.enabled = enabled;
+    run_case(&case).expect("runs")
+}
+
 /// Runs `case` without the drift estimator (it must run over plants) and with it (it must not).
 fn safe_with_drift_estimate(case: &Case) -> Outcome {
-    let mut unguarded = case.clone();
-    unguarded.navigator.drift.enabled = false;
-    let before = run_case(&unguarded).expect("runs");
+    let before = run_with_drift(case, false);
     assert!(before.crop_contacts > 0, "the case no longer provokes the failure: {before:?}");
-    let mut guarded = case.clone();
-    guarded.navigator.drift.enabled = true;
-    let outcome = run_case(&guarded).expect("runs");
+    let outcome = run_with_drift(case, true);
     assert_eq!((outcome.crop_contacts, outcome.unsafe_commands), (0, 0), "{outcome:?}");
     outcome
 }
@@ -45,12 +48,8 @@ fn a_strong_slide_among_tall_weeds_runs_over_far_fewer_plants() {
     // this one and still runs over 8 (at most a quarter is asserted; the previous one-baseline estimator ran over none, but it cost
     // the recovery lane): a known gap, guarded here against getting worse.
     let case = first_lane(910, "young soybean 13.6 m x 9 rows 0.78 m apart");
-    let mut unguarded = case.clone();
-    unguarded.navigator.drift.enabled = false;
-    let before = run_case(&unguarded).expect("runs");
-    let mut guarded = case.clone();
-    guarded.navigator.drift.enabled = true;
-    let after = run_case(&guarded).expect("runs");
+    let before = run_with_drift(&case, false);
+    let after = run_with_drift(&case, true);
     assert!(
         after.crop_contacts * 4 <= before.crop_contacts,
         "{} -> {}",
@@ -88,10 +87,8 @@ fn a_gyro_bias_step_among_spurious_returns_does_not_lead_the_robot_onto_a_row() 
     // EKF's bias check relearns the bias; with the defaults, and with the drift estimator on too, the
     // lane is driven clean (it now is even with the bias check off).
     let case = first_lane(530, "grown corn 11.9 m x 8 rows 0.72 m apart");
-    let outcome = run_case(&case).expect("runs");
-    assert_eq!((outcome.crop_contacts, outcome.unsafe_commands), (0, 0), "{outcome:?}");
-    let mut with_drift = case;
-    with_drift.navigator.drift.enabled = true;
-    let drift_on = run_case(&with_drift).expect("runs");
-    assert_eq!((drift_on.crop_contacts, drift_on.unsafe_commands), (0, 0), "{drift_on:?}");
+    for drift in [false, true] {
+        let o = run_with_drift(&case, drift);
+        assert_eq!((o.crop_contacts, o.unsafe_commands), (0, 0), "drift {drift}: {o:?}");
+    }
 }
