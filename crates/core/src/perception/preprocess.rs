@@ -193,17 +193,23 @@ mod tests {
         assert!((pre.canopy[0][0] - 2.5).abs() < 1e-4 && (pre.canopy[0][1] - 0.4).abs() < 1e-4);
     }
 
+    /// 100 returns along x from 2 m in `base_link`: 90 on the ground, every tenth a plant top at 0.4 m.
+    fn ground_with_plant_tops(mount: &Mount) -> Vec<Point3> {
+        (0..100)
+            .map(|i| {
+                let z = if i % 10 == 0 { 0.4 } else { 0.0 };
+                sensor_point(mount, [2.0 + 0.01 * i as f64, 0.0, z])
+            })
+            .collect()
+    }
+
     #[test]
     fn percentile_plane_ignores_a_ground_majority() {
         let mount = Mount::default();
         let cfg = DetectorConfig::default();
         // 90 ground points and 10 canopy points at 0.4 m: the centroid (0.04 m) would let ground noise
         // through; the percentile rule puts the plane near 0.2 m.
-        let mut pts = Vec::new();
-        for i in 0..100 {
-            let z = if i % 10 == 0 { 0.4 } else { 0.0 };
-            pts.push(sensor_point(&mount, [2.0 + 0.01 * i as f64, 0.0, z]));
-        }
+        let pts = ground_with_plant_tops(&mount);
         let mut pre = Preprocessor::new(8);
         pre.run(&pts, &mount, &cfg, PlaneRule::Percentile);
         assert!((pre.plane_z_m - 0.2).abs() < 0.02, "{}", pre.plane_z_m);
@@ -216,11 +222,7 @@ mod tests {
         // percentile, over the 0.5 m allowed): the plant tops stay, the floating return goes.
         let mount = Mount::default();
         let cfg = DetectorConfig::default();
-        let mut pts = Vec::new();
-        for i in 0..100 {
-            let z = if i % 10 == 0 { 0.4 } else { 0.0 };
-            pts.push(sensor_point(&mount, [2.0 + 0.01 * i as f64, 0.0, z]));
-        }
+        let mut pts = ground_with_plant_tops(&mount);
         pts.push(sensor_point(&mount, [2.5, 0.2, 1.2]));
         let mut pre = Preprocessor::new(8);
         pre.run(&pts, &mount, &cfg, PlaneRule::Percentile);
