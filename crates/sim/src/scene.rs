@@ -25,6 +25,7 @@ use crate::terrain::Relief;
 
 mod packet;
 
+pub(crate) use packet::Isa;
 pub(crate) use packet::LANES as PACKET_LANES;
 
 /// What a LiDAR return hit. For evaluation only: a real sensor does not know it.
@@ -313,6 +314,8 @@ pub(crate) struct Scene {
     /// Highest and lowest point of the whole scene, m.
     top_z: f32,
     bottom_z: f32,
+    /// The variant of the beam-packet code this scene casts with (the best the CPU has).
+    isa: Isa,
 }
 
 impl Scene {
@@ -437,6 +440,7 @@ impl Scene {
             refs,
             top_z,
             bottom_z,
+            isa: Isa::detect(),
         }
     }
 

@@ -98,13 +98,13 @@ impl Lanes {
         seen: [u32::MAX; SEEN],
     };
 
-    #[inline]
+    #[inline(always)]
     fn searching(&self, k: usize) -> bool {
         self.lo[k] < f32::INFINITY
     }
 
     /// Recomputes `settled` after hits.
-    #[inline]
+    #[inline(always)]
     fn settle(&mut self) {
         let mut settled = f32::INFINITY;
         for k in 0..LANES {
@@ -116,7 +116,7 @@ impl Lanes {
 
     /// Stops the rays whose best hit (or end) lies before `dist` along the axis: no strip from there on
     /// can hold a nearer hit. Whether any stopped.
-    #[inline]
+    #[inline(always)]
     fn retire(&mut self, dist: f32) -> bool {
         if dist - SLACK_M <= self.settled {
             return false;
@@ -135,6 +135,7 @@ impl Lanes {
 
     /// Moves the searching rays to the first half of the lanes, which the tests then cover alone
     /// (half the vector work). Stopped rays keep their answers in the other lanes.
+    #[inline(always)]
     fn compact(&mut self) {
         let mut front = 0;
         for k in 0..LANES {
@@ -146,6 +147,7 @@ impl Lanes {
         self.width = LANES / 2;
     }
 
+    #[inline(always)]
     fn swap(&mut self, i: usize, j: usize) {
         self.dx.swap(i, j);
         self.dy.swap(i, j);
@@ -161,6 +163,7 @@ impl Lanes {
 
     /// The searching rays' extreme drifts and descents: `(left, right, steep, flat)`; `None` when no
     /// ray searches.
+    #[inline(always)]
     fn spread(&self) -> Option<(f32, f32, f32, f32)> {
         // Stopped lanes take neutral values, so that the loop has no branch and vectorises.
         let (mut l, mut r, mut st, mut fl) =
@@ -257,9 +260,38 @@ struct Walk {
     sign: f32,
 }
 
+/// The instruction sets the packet code is compiled for. The code is one source, compiled once per
+/// variant; a scene picks the best its CPU has when it is built.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Isa {
+    /// The build target's baseline (SSE2 on x86-64): a lane array is two 4-wide registers.
+    Baseline,
+    /// x86-64 AVX2: a lane array is one 8-wide register. Without FMA: Rust never contracts `a * b + c`,
+    /// so both variants round every operation alike and return the same bits.
+    Avx2,
+}
+
+impl Isa {
+    /// The best variant this CPU runs (the standard library caches the CPUID probe).
+    pub(crate) fn detect() -> Self {
+        if Self::Avx2.available() { Self::Avx2 } else { Self::Baseline }
+    }
+
+    /// Whether this CPU runs the variant.
+    pub(crate) fn available(self) -> bool {
+        match self {
+            Self::Baseline => true,
+            #[cfg(target_arch = "x86_64")]
+            Self::Avx2 => std::arch::is_x86_feature_detected!("avx2"),
+            #[cfg(not(target_arch = "x86_64"))]
+            Self::Avx2 => false,
+        }
+    }
+}
+
 impl Scene {
     /// Casts the unit rays `o + t·dirs[k]` (field frame, at most [`LANES`]) and writes each one's first
-    /// hit with `t ≤ t_max` to `out[k]`, as [`Scene::cast`] would.
+    /// hit with `t ≤ t_max` to `out[k]`, as [`Scene::cast`] would, with the scene's [`Isa`].
     pub(crate) fn cast_packet(
         &self,
         o: [f32; 3],
@@ -267,6 +299,39 @@ impl Scene {
         t_max: f32,
         out: &mut [Option<(f32, Class)>],
     ) {
+        match self.isa {
+            // The workspace's one `unsafe`: calling code compiled for a CPU feature.
+            // SAFETY: `Scene::build` and `Scene::set_isa` store `Isa::Avx2` only where the CPU has AVX2.
+            #[cfg(target_arch = "x86_64")]
+            #[allow(unsafe_code)]
+            Isa::Avx2 => unsafe { self.cast_packet_avx2(o, dirs, t_max, out) },
+            _ => self.cast_packet_with(o, dirs, t_max, out),
+        }
+    }
+
+    /// Picks the packet code's variant; one the CPU lacks falls back to [`Isa::Baseline`].
+    #[cfg(test)]
+    pub(crate) fn set_isa(&mut self, isa: Isa) {
+        self.isa = if isa.available() { isa } else { Isa::Baseline };
+    }
+
+    /// The scene's variant of the packet code.
+    #[cfg(test)]
+    pub(crate) fn isa(&self) -> Isa {
+        self.isa
+    }
+
+    /// [`Scene::cast_packet`] compiled for AVX2: the same body, whose callees are all inlined into it.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn cast_packet_avx2(&self, o: [f32; 3], dirs: &[[f32; 3]], t_max: f32, out: &mut [Option<(f32, Class)>]) {
+        self.cast_packet_with(o, dirs, t_max, out)
+    }
+
+    /// The packet code, inlined (with everything it calls but the single-ray caster) into each
+    /// variant's wrapper so that it compiles for the wrapper's instruction set.
+    #[inline(always)]
+    fn cast_packet_with(&self, o: [f32; 3], dirs: &[[f32; 3]], t_max: f32, out: &mut [Option<(f32, Class)>]) {
         // Most packets behind the sensor rise: settle them before setting up any lanes.
         let mut starts = [const { None }; LANES];
         for ((&d, slot), start) in dirs.iter().zip(out.iter_mut()).zip(&mut starts) {
@@ -329,6 +394,7 @@ impl Scene {
     }
 
     /// How a ray enters a packet.
+    #[inline(always)]
     fn packet_ray(&self, o: [f32; 3], d: [f32; 3], t_max: f32) -> Start {
         let horizontal = (d[0] * d[0] + d[1] * d[1]).sqrt();
         // Written so that NaN directions go alone too.
@@ -359,6 +425,7 @@ impl Scene {
 
     /// The walk's axis and wedge for the searching lanes (unit horizontal directions `units`, mean
     /// direction `centre`); `None` when the packet fans wider than `MIN_COS`.
+    #[inline(always)]
     fn plan(&self, lanes: &mut Lanes, units: &[[f32; 2]; LANES], centre: [f32; 2]) -> Option<Walk> {
         let (a, b) = if centre[0].abs() >= centre[1].abs() { (0, 1) } else { (1, 0) };
         let sign = if centre[a] >= 0.0 { 1f32 } else { -1.0 };
@@ -380,6 +447,7 @@ impl Scene {
 
     /// Visits the strips outwards and, in each, the wedge's cells, until no ray searches or the packet's
     /// reach is passed.
+    #[inline(always)]
     fn walk(&self, o: [f32; 3], w: &Walk, lanes: &mut Lanes) -> Searched {
         let (a, b) = (w.a, w.b);
         let cell = self.cell_m;
@@ -432,7 +500,7 @@ impl Scene {
     /// Tests the primitives of cell `c` that reach into the rays' height range `(z_low, z_high)` over
     /// it and into their range `(lo, hi)` along axis `b` against every searching ray, each primitive
     /// once per packet.
-    #[inline]
+    #[inline(always)]
     fn visit(
         &self,
         o: [f32; 3],
@@ -522,50 +590,81 @@ mod tests {
         dirs
     }
 
-    /// Every ray of whole revolutions cast in packets and alone: same hits (within 1 mm) and classes.
-    fn packets_match_single_rays(config: FieldConfig, poses: &[(f32, f32, f32)], min_crop_hits: usize) {
-        let field = Field::generate(&config, 3).unwrap();
-        let s = field.scene();
-        let (mut crop, mut mismatches) = (0, Vec::new());
+    /// The packets of whole revolutions from sensors 1.5 m over `(x, y)` heading `yaw`: each laser's
+    /// rays of 8 consecutive columns, with their origin.
+    fn packets(poses: &[(f32, f32, f32)]) -> Vec<([f32; 3], Vec<[f32; 3]>)> {
+        let mut packets = Vec::new();
         for &(x, y, yaw) in poses {
-            let o = [x, y, 1.5];
             let dirs = revolution(yaw);
             for beam in 0..16 {
                 let rays: Vec<[f32; 3]> = dirs.iter().skip(beam).step_by(16).copied().collect();
-                for chunk in rays.chunks(LANES) {
-                    let mut out = [None; LANES];
-                    s.cast_packet(o, chunk, 100.0, &mut out[..chunk.len()]);
-                    for (d, packet) in chunk.iter().zip(out) {
-                        let alone = s.cast(o, *d, 100.0);
-                        let same = match (packet, alone) {
-                            (None, None) => true,
-                            (Some((tp, cp)), Some((ta, ca))) => (tp - ta).abs() < 1e-3 && cp == ca,
-                            _ => false,
-                        };
-                        crop += usize::from(matches!(alone, Some((_, Class::Crop))));
-                        if !same {
-                            mismatches.push((o, *d, packet, alone));
-                        }
+                packets.extend(rays.chunks(LANES).map(|chunk| ([x, y, 1.5], chunk.to_vec())));
+            }
+        }
+        packets
+    }
+
+    /// The scene of a generated field, casting packets with `isa`.
+    fn scene_with(field: &Field, isa: Isa) -> Scene {
+        let mut s = field.scene().clone();
+        s.set_isa(isa);
+        s
+    }
+
+    /// Every ray of whole revolutions cast in packets (with each variant of the packet code) and alone:
+    /// same hits (within 1 mm) and classes.
+    fn packets_match_single_rays(config: FieldConfig, poses: &[(f32, f32, f32)], min_crop_hits: usize) {
+        let field = Field::generate(&config, 3).unwrap();
+        let packets = packets(poses);
+        for isa in [Isa::Baseline, Isa::detect()] {
+            let s = scene_with(&field, isa);
+            let (mut crop, mut mismatches) = (0, Vec::new());
+            for (o, chunk) in &packets {
+                let mut out = [None; LANES];
+                s.cast_packet(*o, chunk, 100.0, &mut out[..chunk.len()]);
+                for (d, packet) in chunk.iter().zip(out) {
+                    let alone = s.cast(*o, *d, 100.0);
+                    let same = match (packet, alone) {
+                        (None, None) => true,
+                        (Some((tp, cp)), Some((ta, ca))) => (tp - ta).abs() < 1e-3 && cp == ca,
+                        _ => false,
+                    };
+                    crop += usize::from(matches!(alone, Some((_, Class::Crop))));
+                    if !same {
+                        mismatches.push((*o, *d, packet, alone));
                     }
                 }
             }
+            assert!(
+                mismatches.is_empty(),
+                "{isa:?}: {} mismatches, first {:?}",
+                mismatches.len(),
+                mismatches.first()
+            );
+            // The rays must exercise the plants, not only the ground.
+            assert!(crop > min_crop_hits, "{isa:?}: {crop} crop hits");
         }
-        assert!(mismatches.is_empty(), "{} mismatches, first {:?}", mismatches.len(), mismatches.first());
-        // The rays must exercise the plants, not only the ground.
-        assert!(crop > min_crop_hits, "{crop} crop hits");
     }
 
-    #[test]
-    fn packets_match_single_rays_over_grown_corn() {
-        let config = FieldConfig {
+    /// 8 rows of grown corn, 12 m long, with weeds.
+    fn grown_corn() -> FieldConfig {
+        FieldConfig {
             crop: Crop::Corn,
             stage: Stage::Grown,
             rows: 8,
             length_m: 12.0,
             weeds_per_m2: 2.0,
             ..FieldConfig::default()
-        };
-        packets_match_single_rays(config, &[(4.0, 2.625, 0.0), (6.0, 2.3, 0.3), (11.5, 0.0, -2.5)], 10_000);
+        }
+    }
+
+    #[test]
+    fn packets_match_single_rays_over_grown_corn() {
+        packets_match_single_rays(
+            grown_corn(),
+            &[(4.0, 2.625, 0.0), (6.0, 2.3, 0.3), (11.5, 0.0, -2.5)],
+            10_000,
+        );
     }
 
     #[test]
@@ -593,5 +692,35 @@ mod tests {
             ..FieldConfig::default()
         };
         packets_match_single_rays(config, &[(3.0, 1.125, 0.2)], 500);
+    }
+
+    #[test]
+    fn a_variant_the_cpu_lacks_falls_back_to_the_baseline() {
+        let field =
+            Field::generate(&FieldConfig { rows: 2, length_m: 2.0, ..FieldConfig::default() }, 1).unwrap();
+        assert_eq!(scene_with(&field, Isa::Baseline).isa(), Isa::Baseline);
+        let avx2 = scene_with(&field, Isa::Avx2).isa();
+        assert_eq!(avx2, if Isa::Avx2.available() { Isa::Avx2 } else { Isa::Baseline });
+        // A freshly built scene takes the best variant there is.
+        assert_eq!(field.scene().isa(), Isa::detect());
+    }
+
+    #[test]
+    fn every_variant_returns_the_same_bits() {
+        // Grown corn with weeds from inside, across and outside the field: every ray of each pose's
+        // revolution, compared bit for bit (distance and class) between the variants.
+        let field = Field::generate(&grown_corn(), 4).unwrap();
+        let (baseline, best) = (scene_with(&field, Isa::Baseline), field.scene());
+        let mut hits = 0;
+        for (o, chunk) in packets(&[(4.0, 2.625, 0.0), (6.0, 2.3, 0.3), (11.5, 0.0, -2.5), (-1.0, 3.0, 0.8)])
+        {
+            let (mut a, mut b) = ([None; LANES], [None; LANES]);
+            baseline.cast_packet(o, &chunk, 100.0, &mut a[..chunk.len()]);
+            best.cast_packet(o, &chunk, 100.0, &mut b[..chunk.len()]);
+            let bits = |h: Option<(f32, Class)>| h.map(|(t, c)| (t.to_bits(), c));
+            assert_eq!(a.map(bits), b.map(bits), "{:?} vs {:?} from {o:?}", baseline.isa(), best.isa());
+            hits += a.iter().flatten().count();
+        }
+        assert!(hits > 40_000, "{hits} hits");
     }
 }
