@@ -70,6 +70,35 @@
 //! - 16 lanes: -3 % instructions; reach 4 m / 8 m: +7 % / +1.5 %; cells of 0.07 m / 0.15 m: +5 % /
 //!   +1 %.
 //!
+//! AVX2 build (branch `simperf4`): the packet code (`scene/packet.rs`, one source with every callee
+//! `#[inline(always)]`) is compiled a second time under `#[target_feature(enable = "avx2")]` and picked
+//! when the scene is built (`is_x86_feature_detected!`); no FMA, so both builds return the same bits (a
+//! test compares them ray by ray, and the packet-vs-single-ray tests run on both). The AVX2 build never
+//! halves the lanes (one register holds 8), and both settle the lanes' stopping distance once per strip
+//! instead of at every hit. Measured 2026-11-22 on the shared 2-core AMD EPYC (AVX2 and AVX-512; load
+//! average 6-8 from other builds, so CPU times are noisy). Instructions per revolution (callgrind as
+//! above, 3 revolutions) before -> after: young corn 17.06M -> 16.15M, grown corn 20.67M -> 18.82M,
+//! young soybean 19.17M -> 17.89M, grown soybean 23.91M -> 21.35M, curved corn 17.57M -> 16.68M; scan
+//! hashes of all five scenarios unchanged. CPU time per revolution (`examples/raycast_cost.rs`, 50
+//! revolutions, 10 runs alternating the binaries, median / min): young corn 2.68 / 2.10 -> 2.42 / 2.10
+//! ms, grown corn 3.61 / 2.82 -> 3.18 / 2.45 ms, young soybean 3.22 / 2.59 -> 2.94 / 2.22 ms, grown
+//! soybean 4.55 / 3.98 -> 4.20 / 3.02 ms. The world alone (`examples/world_cost.rs`, 8 s, CPU time, 5
+//! runs, median real-time factor): grown corn 27.8 -> 30.4, young corn 38.2 -> 43.0. The 8-lane patch
+//! test was already a small share once packed 4-wide: in the AVX2 build it costs ~48 instructions (52k
+//! tests a grown-corn revolution, 2.5M), the walk's bookkeeping (strips, cell lists, footprints, the
+//! table, lane spreads) ~11M, the rays past the reach 2M and the LiDAR's own work (rotations, noise,
+//! points) 2.5M. The baseline build of the same source costs 8 % more instructions than before
+//! (grown corn 22.4M: the forced inlining changes its register use) at the same CPU time within the
+//! noise (grown corn median 3.74 vs 3.69 ms). Tried and dropped: testing the table before the footprint
+//! (+0.7 % instructions); leaving `settle`, `retire` and `visit` to the inliner (+20 % in the AVX2
+//! build, where they were then compiled for the baseline, +5 % in the baseline build).
+//!
+//! Outside the caster there is nothing left to take (callgrind on `croprow bench`, grown corn): per
+//! 0.1 s simulated, the LiDAR's casting costs ~19M instructions, the rest of `World::step` (robot,
+//! wheel odometry, IMU, crop contacts) ~27k, the EKF fusion ~47k and the `Navigator` (detector, lane
+//! switching, MPC) ~2.4M; `croprow bench --json` gave `sim_realtime_factor` 12.1 -> 14.4 (median of 8
+//! runs alternating the binaries, wall time at load average 7 on 2 cores).
+//!
 //! The 1 ms target needs 5x fewer instructions (~4M a revolution, ~300 per ray that hits); the
 //! cost is spread over the walk (strips, cells, ~70 cell references a packet), 8-lane tests and the
 //! rays left to `Scene::cast_from` past the reach (1.9k a revolution, ~800 instructions each).

@@ -13,8 +13,8 @@
 //!   the first one ends the ray.
 //!
 //! [`Scene::cast`] casts one ray that way. The LiDAR casts beam packets instead (`packet`: a laser's
-//! rays at 8 consecutive azimuths walk the grid together and test each primitive on all 8 at once),
-//! which return exactly what `cast` returns ray by ray; `cast` stays the path of the rays packets do
+//! rays at 8 consecutive azimuths walk the grid together and test each primitive on all 8 at once, in
+//! one AVX2 register where the CPU has it), which return exactly what `cast` returns ray by ray; `cast` stays the path of the rays packets do
 //! not suit and the reference the packet tests compare against.
 //!
 //! Primitives are cheap to intersect: flat patches (rectangles and ellipses) for leaves, vertical
