@@ -41,6 +41,11 @@ const INLIER_M: f64 = 0.04;
 const TUKEY_M: f64 = 0.08;
 /// Weighted least-squares passes of the refinement.
 const REFINE_PASSES: usize = 4;
+/// Smallest share of the cells that must lie on the fitted surface. A ground or a closed canopy top
+/// holds most cells; a tall crop whose low returns are leaves at every height (grown corn from inside
+/// the rows) fits no plane, and a fit through a fifth of its cells tilted the scan by ±1° from one
+/// scan to the next (soak seed 726, which then never acquired its lane).
+const MIN_INLIER_SHARE: f64 = 0.5;
 /// Fewest standard deviation of the inlier cells along x and along y, m, for both slopes to be fixed.
 const MIN_SPREAD_M: f64 = 0.4;
 /// One scan never weighs more in the low-pass than this much time of scans, s: after a long hold
@@ -299,7 +304,11 @@ impl Level {
         }
         let (count, sx, sy) = self.inlier_spread(&plane);
         self.support = count;
-        if count < min_cells || sx < MIN_SPREAD_M || sy < MIN_SPREAD_M {
+        if count < min_cells
+            || (count as f64) < MIN_INLIER_SHARE * n as f64
+            || sx < MIN_SPREAD_M
+            || sy < MIN_SPREAD_M
+        {
             return None;
         }
         // A cell's low return sits lower the more returns the cell holds (the minimum of more range
