@@ -198,12 +198,26 @@ fn a_gap_in_the_lanes_rows_longer_than_the_end_window_keeps_tracking() {
 }
 
 #[test]
-fn a_gap_across_every_row_is_taken_for_the_row_end() {
-    // With every row empty for 4 m nothing in the scan tells a gap from the headland: the lane ends
-    // there (the mission of one lane is done) and the robot stops in the gap, before the rows resume.
+fn a_gap_across_every_row_is_crossed() {
+    // Every row empty over x = 8-12 m: from the row end the scan sees crop again 4 m on, standing
+    // still as the robot drives towards it, and the gap rule (`lane_switch.gap_confirmations`, 3 by
+    // default) drops the end: the robot follows on across the gap to the field's end. Measured 0.45
+    // ± 0.44 cm, max 2.72 cm (the rows in view are short across the gap).
     let mut s = scenario("row-gap");
     s.faults.row_gap.rows.clear();
-    let o = drive(&s);
+    assert_tracked(&drive(&s), 1.0, 4.0);
+}
+
+#[test]
+fn a_gap_across_every_row_is_taken_for_the_row_end_with_the_gap_rule_off() {
+    // With every row empty for 4 m and the gap rule off nothing tells a gap from the headland: the
+    // lane ends there (the mission of one lane is done) and the robot stops in the gap, before the
+    // rows resume.
+    let mut s = scenario("row-gap");
+    s.faults.row_gap.rows.clear();
+    let mut nav = closed_loop::sim_navigator();
+    nav.lane_switch.gap_confirmations = 0;
+    let o = drive_with(&s, nav);
     assert_safe(&o);
     let m = &o.run.metrics;
     assert_eq!(m.final_mode, Mode::Done, "{m:?}");
@@ -283,7 +297,7 @@ fn a_lidar_pitched_three_degrees_with_the_gap_rule_on_ends_the_lane_at_the_row_e
     // a gap: the robot followed phantom rows out of the field for 150 m. Levelled, the lane ends at
     // the row end as without the fault.
     let mut nav = closed_loop::sim_navigator();
-    nav.lane_switch.gap_confirmations = 3;
+    nav.lane_switch.gap_confirmations = 3; // the default, spelt out: this is the case it must survive
     for pitch_deg in [3.0, -3.0] {
         let mut s = scenario("mount-error");
         s.faults.mount_error.pitch_deg = pitch_deg;
