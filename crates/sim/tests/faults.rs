@@ -5,9 +5,10 @@
 //! limits, no motion command while stopped.
 
 use croprow_core::control::lane_switch::{Mode, StopReason};
-use croprow_core::{RowStatus, Twist2};
+use croprow_core::perception::{LevelStatus, Tilt};
+use croprow_core::{NavigatorConfig, RowStatus, Twist2};
 use croprow_sim::Scenario;
-use croprow_sim::closed_loop::{self, Run, RunConfig};
+use croprow_sim::closed_loop::{self, ClosedLoop, Run, RunConfig};
 
 /// What a fault run did, read from its samples.
 struct Outcome {
@@ -18,6 +19,8 @@ struct Outcome {
     resumes: usize,
     /// Longest distance driven in `following` between two scans whose rows were tracked, m.
     max_blind_m: f64,
+    /// The detector's levelling estimate at the end of the run.
+    tilt: Tilt,
 }
 
 fn scenario(name: &str) -> Scenario {
@@ -41,8 +44,18 @@ fn scenario(name: &str) -> Scenario {
 
 /// Drives one lane of `s` closed loop and reads the stops, resumes and blind stretches.
 fn drive(s: &Scenario) -> Outcome {
+    drive_with(s, closed_loop::sim_navigator())
+}
+
+/// [`drive`] with the navigator configured by `nav`.
+fn drive_with(s: &Scenario, nav: NavigatorConfig) -> Outcome {
     let cfg = RunConfig { lanes: 1, ..RunConfig::default() };
-    let run = closed_loop::run(s, closed_loop::sim_navigator(), cfg, |_| {}).unwrap();
+    let mut lp = ClosedLoop::new(s, &nav, cfg).unwrap();
+    while !lp.is_finished() {
+        lp.step().unwrap();
+    }
+    let tilt = lp.navigator().detector().tilt();
+    let run = lp.finish();
     let (mut stops, mut resumes, mut max_blind_m) = (Vec::new(), 0, 0.0f64);
     let mut last_seen_m: Option<f64> = None;
     let mut prev = Mode::Acquiring;
@@ -69,7 +82,7 @@ fn drive(s: &Scenario) -> Outcome {
     eprintln!(
         "{}: final {:?}, cross-track {:.2} ± {:.2} cm (max {:.2}), heading {:.2}°, contacts {}, \
          violations {}, distance {:.2} m, stops {stops:?}, resumes {resumes}, blind {max_blind_m:.2} m, \
-         EKF rejections {}",
+         EKF rejections {}, tilt ({:.2}, {:.2})° {}",
         run.scenario,
         m.final_mode,
         m.cross_track_mean_m * 100.0,
@@ -80,8 +93,11 @@ fn drive(s: &Scenario) -> Outcome {
         m.command_violations,
         m.distance_m,
         m.ekf_rejections,
+        tilt.roll_rad.to_degrees(),
+        tilt.pitch_rad.to_degrees(),
+        tilt.status.as_str(),
     );
-    Outcome { run, stops, resumes, max_blind_m }
+    Outcome { run, stops, resumes, max_blind_m, tilt }
 }
 
 /// What every fault run must show: no crop contact, every command finite and within the MPC's limits,
@@ -182,12 +198,26 @@ fn a_gap_in_the_lanes_rows_longer_than_the_end_window_keeps_tracking() {
 }
 
 #[test]
-fn a_gap_across_every_row_is_taken_for_the_row_end() {
-    // With every row empty for 4 m nothing in the scan tells a gap from the headland: the lane ends
-    // there (the mission of one lane is done) and the robot stops in the gap, before the rows resume.
+fn a_gap_across_every_row_is_crossed() {
+    // Every row empty over x = 8-12 m: from the row end the scan sees crop again 4 m on, standing
+    // still as the robot drives towards it, and the gap rule (`lane_switch.gap_confirmations`, 3 by
+    // default) drops the end: the robot follows on across the gap to the field's end. Measured 0.45
+    // ± 0.44 cm, max 2.72 cm (the rows in view are short across the gap).
     let mut s = scenario("row-gap");
     s.faults.row_gap.rows.clear();
-    let o = drive(&s);
+    assert_tracked(&drive(&s), 1.0, 4.0);
+}
+
+#[test]
+fn a_gap_across_every_row_is_taken_for_the_row_end_with_the_gap_rule_off() {
+    // With every row empty for 4 m and the gap rule off nothing tells a gap from the headland: the
+    // lane ends there (the mission of one lane is done) and the robot stops in the gap, before the
+    // rows resume.
+    let mut s = scenario("row-gap");
+    s.faults.row_gap.rows.clear();
+    let mut nav = closed_loop::sim_navigator();
+    nav.lane_switch.gap_confirmations = 0;
+    let o = drive_with(&s, nav);
     assert_safe(&o);
     let m = &o.run.metrics;
     assert_eq!(m.final_mode, Mode::Done, "{m:?}");
@@ -244,9 +274,37 @@ fn scans_stamped_in_the_past_for_longer_than_the_blind_distance_stop_the_robot()
     assert!(end > 8.0 && end < 9.6, "{end}");
 }
 
+/// The levelling estimate of `o` is within `tol_deg` of the surface tilt (roll, pitch) in degrees.
+fn assert_levelled(o: &Outcome, roll_deg: f64, pitch_deg: f64, tol_deg: f64) {
+    let t = &o.tilt;
+    assert_eq!(t.status, LevelStatus::Measured, "{t:?}");
+    assert!((t.roll_rad.to_degrees() - roll_deg).abs() < tol_deg, "{t:?}");
+    assert!((t.pitch_rad.to_degrees() - pitch_deg).abs() < tol_deg, "{t:?}");
+}
+
 #[test]
 fn a_lidar_pitched_three_degrees_off_its_nominal_mount_keeps_tracking() {
-    assert_tracked(&drive(&scenario("mount-error")), 1.0, 3.0);
+    // The detector levels the scan: the ground reads pitched -3° (measured -2.98°), and the lane is
+    // tracked as without the fault (0.32 cm mean, 0.81 cm max; unlevelled 0.34 cm, 1.00 cm).
+    let o = drive(&scenario("mount-error"));
+    assert_tracked(&o, 1.0, 3.0);
+    assert_levelled(&o, 0.0, -3.0, 0.2);
+}
+
+#[test]
+fn a_lidar_pitched_three_degrees_with_the_gap_rule_on_ends_the_lane_at_the_row_end() {
+    // Unlevelled, the ground past the row end read as canopy and the gap rule took it for crop beyond
+    // a gap: the robot followed phantom rows out of the field for 150 m. Levelled, the lane ends at
+    // the row end as without the fault.
+    let mut nav = closed_loop::sim_navigator();
+    nav.lane_switch.gap_confirmations = 3; // the default, spelt out: this is the case it must survive
+    for pitch_deg in [3.0, -3.0] {
+        let mut s = scenario("mount-error");
+        s.faults.mount_error.pitch_deg = pitch_deg;
+        let o = drive_with(&s, nav.clone());
+        assert_tracked(&o, 1.0, 3.0);
+        assert_levelled(&o, 0.0, -pitch_deg, 0.2);
+    }
 }
 
 #[test]
@@ -254,10 +312,14 @@ fn a_lidar_rolled_three_degrees_off_its_nominal_mount_keeps_tracking() {
     let mut s = scenario("mount-error");
     s.faults.mount_error.pitch_deg = 0.0;
     s.faults.mount_error.roll_deg = 3.0;
-    // Roll shifts the canopy sideways by 1.5 m · sin 3° at the ground, less at the canopy: measured
-    // 1.6 cm mean; the maximum, 9.8 cm, is in the last metre of the lane, where the rows end in view
-    // and the biased fit bends (5.9 cm before the MPC's speed became a limit and turns pivoted).
-    assert_tracked(&drive(&s), 3.0, 11.0);
+    // The sensor rolls about its own axis, pitched 30° down: that is 2.6° of roll in base_link, which
+    // levelling removes (measured -2.60°), and 1.5° of yaw, which no ground plane shows. Levelled, the
+    // yaw is left alone: measured 4.35 cm mean, 5.44 cm max, as a pure 1.5° yaw error gives (4.3-4.9
+    // cm). Unlevelled the roll's sideways shift of the canopy happened to offset the yaw's (1.61 cm
+    // mean) but bent the fit where the rows end in view (9.93 cm max).
+    let o = drive(&s);
+    assert_tracked(&o, 5.0, 7.0);
+    assert_levelled(&o, -2.6, 0.0, 0.2);
 }
 
 #[test]

@@ -93,20 +93,36 @@ fn a_gap_across_every_row_is_crossed_not_turned_at() {
 fn a_row_end_seen_through_a_missing_scan_sector_does_not_turn_into_the_crop() {
     // Young soybean, a 119° sector of the scan missing over x = 2.8-5.7 m: the rows' far part
     // vanished with it and the canopy seemed to end; the turn started there, in the field (9 plants).
-    // With the gap rule the crop shows again at the first pivot and the robot stops there.
+    // With the gap rule the crop shows again at the first pivot and the robot stops there (a variant
+    // of the levelling saw the crop past the sector in time and finished the mission). Either is safe
+    // (`safe_run_with_gap_rule` asserts no contact); turning into the crop is not.
     let o = safe_run_with_gap_rule(646, "young soybean 13.9 m x 7 rows 0.76 m apart");
-    assert_eq!(o.end, "stopped: crop_past_row_end", "{o:?}");
+    let done = (o.end.as_str(), o.lanes_completed) == ("done", 2);
+    assert!(done || o.end == "stopped: crop_past_row_end", "{o:?}");
 }
 
 #[test]
 fn a_row_end_that_recedes_with_a_tilted_lidar_stops_the_robot() {
-    // Young soybean, the LiDAR mount off by (1.8, -0.8, -2.3)°: past the crop the ground read as
-    // canopy, the row end stayed 2-3 m ahead of the robot wherever it went, and the robot followed
-    // phantom rows round a 14 m circle outside the field for 80 m, then turned into the crop
-    // (12 plants). Now an end that moves away more than 2 m past where it was first seen stops it.
-    let o = safe_run(948, "young soybean 12.5 m x 7 rows 0.75 m apart");
+    // Young soybean, the LiDAR mount off by (1.8, -0.8, -2.3)°, the detector's levelling off: past the
+    // crop the ground read as canopy, the row end stayed 2-3 m ahead of the robot wherever it went,
+    // and the robot followed phantom rows round a 14 m circle outside the field for 80 m, then turned
+    // into the crop (12 plants). Now an end that moves away more than 2 m past where it was first seen
+    // stops it.
+    let mut case = soak_case(948);
+    assert!(case.scenario.summary.starts_with("young soybean 12.5 m x 7 rows 0.75 m apart"));
+    case.navigator.detector.level_enabled = false;
+    let o = run_case(&case).expect("runs");
+    assert_eq!((o.crop_contacts, o.unsafe_commands), (0, 0), "{o:?}");
     assert_eq!(o.end, "stopped: row_end_receding", "{o:?}");
     assert!(o.distance_m < 13.0, "{o:?}");
+}
+
+#[test]
+fn a_tilted_lidar_levelled_by_the_detector_ends_its_lanes_at_the_row_ends() {
+    // The same field with the detector's levelling on (the default): the ground past the rows stays
+    // ground, and both lanes end where the rows do.
+    let o = safe_run(948, "young soybean 12.5 m x 7 rows 0.75 m apart");
+    assert_eq!((o.end.as_str(), o.lanes_completed), ("done", 2), "{o:?}");
 }
 
 #[test]

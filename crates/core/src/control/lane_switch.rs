@@ -62,7 +62,7 @@
 //! # A row end is not final until the headland past it is seen empty
 //! A stretch missing from every row (or rows hidden by a missing scan sector) looks like the row end
 //! from afar. The detector's map keeps mapping the lane's rows as the robot drives on; with the gap
-//! rule on (`gap_confirmations` > 0; off by default, see that field), when on `gap_confirmations`
+//! rule on (`gap_confirmations` > 0; 3 by default, see that field), when on `gap_confirmations`
 //! scans in a row crop stands on `gap_rows` of the lane's rows and their outer neighbours more than
 //! `gap_margin_m` past the end's canopy, beyond an empty stretch, and stays where it is while the
 //! robot drives 0.5 m towards it, and the detector tracks the rows and does not confirm the end, the
@@ -246,11 +246,11 @@ pub struct LaneSwitchConfig {
     pub gap_rows: u32,
     /// Consecutive scans, each tracking the rows without confirming the end, that must show crop
     /// past the row end, standing still while the robot drives 0.5 m towards it, before the end is
-    /// dropped as a gap (see the module docs); 0 makes the first end seen final. Default 0 (off):
-    /// a LiDAR pitched 3° off its mount reads the ground at the scan's far edge as canopy past a
-    /// true row end, which this rule cannot tell from crop beyond a gap (the robot then followed
-    /// phantom rows out of the field, `fault-mount-error`); 3 (0.3 s of scans at 10 Hz) with a
-    /// well-calibrated mount.
+    /// dropped as a gap (see the module docs); 0 makes the first end seen final. Default 3 (0.3 s
+    /// of scans at 10 Hz). It relies on the detector's levelling (`detector.level_enabled`): an
+    /// unlevelled LiDAR pitched 3° off its mount reads the ground at the scan's far edge as canopy
+    /// past a true row end, which this rule cannot tell from crop beyond a gap (the robot then
+    /// followed phantom rows out of the field for 150 m, `fault-mount-error`).
     pub gap_confirmations: u32,
     /// Farthest a reported row end is believed past where the lane's end was first seen, m. A row
     /// end is a place: one that keeps moving away ahead of the robot is canopy seen everywhere (a
@@ -301,7 +301,7 @@ impl Default for LaneSwitchConfig {
             resume_confirmations: 5,
             gap_margin_m: 1.0,
             gap_rows: 2,
-            gap_confirmations: 0,
+            gap_confirmations: 3,
             max_end_recession_m: 2.0,
             end_recession_scans: 5,
         }
@@ -1584,7 +1584,7 @@ mod tests {
         sw.update(&at, Some(&d)).mode
     }
 
-    /// The defaults with the gap rule on (3 scans).
+    /// The gap rule on with 3 scans (the default, spelt out: these tests are about the rule).
     fn gap_rule() -> LaneSwitchConfig {
         LaneSwitchConfig { gap_confirmations: 3, ..LaneSwitchConfig::default() }
     }
@@ -1678,8 +1678,9 @@ mod tests {
     }
 
     #[test]
-    fn by_default_the_first_row_end_seen_is_final() {
-        let (mut sw, x) = approach_end(LaneSwitchConfig::default(), &[[1.9, 0.37], [1.95, -0.37]], 3.3);
+    fn with_the_gap_rule_off_the_first_row_end_seen_is_final() {
+        let off = LaneSwitchConfig { gap_confirmations: 0, ..LaneSwitchConfig::default() };
+        let (mut sw, x) = approach_end(off, &[[1.9, 0.37], [1.95, -0.37]], 3.3);
         for k in 0..10 {
             see_crop_past(&mut sw, x + 0.1 * k as f64, 2.0 + 0.1 * k as f64, 6.0, &[0.375, -0.375]);
         }

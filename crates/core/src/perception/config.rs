@@ -110,6 +110,22 @@ pub struct DetectorConfig {
     /// Default mode: `EndOfRow` is raised once the row end is this close ahead of `base_link`, m.
     /// Default 0.5.
     pub end_trigger_m: f64,
+    /// Default mode: level each scan by the tilt of the surface below the sensor, so that a LiDAR a few
+    /// degrees off its configured mount still sees a level ground (`perception::level`). The paper mode
+    /// is never levelled. Default true.
+    pub level_enabled: bool,
+    /// Levelling: side of the square cells whose low return gives the surface height, m. Default 0.5
+    /// (several returns per cell at 4 m, narrower than a row gap is long).
+    pub level_cell_m: f64,
+    /// Levelling: largest roll or pitch corrected, degrees; a larger fitted tilt is clamped to it. Default
+    /// 6 (twice the ±3° mount error of issue 6).
+    pub level_max_tilt_deg: f64,
+    /// Levelling: time constant of the low-pass on the fitted tilt, s. Default 0.5 (a knocked mount is
+    /// followed within 1.5 s; one scan's fit moves it by a fifth at 10 Hz).
+    pub level_time_constant_s: f64,
+    /// Levelling: fewest cells on the fitted surface for a scan's fit to count; fewer holds the previous
+    /// estimate (none at all before the first fit). Default 12.
+    pub level_min_cells: usize,
 }
 
 impl Default for DetectorConfig {
@@ -145,6 +161,11 @@ impl Default for DetectorConfig {
             fit_curvature: true,
             end_empty_m: 1.0,
             end_trigger_m: 0.5,
+            level_enabled: true,
+            level_cell_m: 0.5,
+            level_max_tilt_deg: 6.0,
+            level_time_constant_s: 0.5,
+            level_min_cells: 12,
         }
     }
 }
@@ -197,6 +218,11 @@ impl DetectorConfig {
         check_count("detector.map_capacity", self.map_capacity, 16, 1_000_000)?;
         check_range("detector.end_empty_m", self.end_empty_m, 0.1, 50.0)?;
         check_range("detector.end_trigger_m", self.end_trigger_m, -10.0, 10.0)?;
+        // The levelling grid covers range_m ahead and on each side: at most 128 cells a side.
+        check_range("detector.level_cell_m", self.level_cell_m, (self.range_m / 128.0).max(0.05), 5.0)?;
+        check_range("detector.level_max_tilt_deg", self.level_max_tilt_deg, 0.0, 20.0)?;
+        check_range("detector.level_time_constant_s", self.level_time_constant_s, 0.01, 60.0)?;
+        check_count("detector.level_min_cells", self.level_min_cells, 3, 100_000)?;
         Ok(())
     }
 }
@@ -230,6 +256,10 @@ mod tests {
         assert!(c.validate().unwrap_err().to_string().contains("detector.max_depth_m"));
         let c = DetectorConfig { spacing_max_m: 0.2, ..DetectorConfig::default() };
         assert!(c.validate().unwrap_err().to_string().contains("detector.spacing_max_m"));
+        let c = DetectorConfig { range_m: 100.0, level_cell_m: 0.5, ..DetectorConfig::default() };
+        assert!(c.validate().unwrap_err().to_string().contains("detector.level_cell_m"));
+        let c = DetectorConfig { level_time_constant_s: f64::NAN, ..DetectorConfig::default() };
+        assert!(c.validate().unwrap_err().to_string().contains("detector.level_time_constant_s"));
     }
 
     #[test]

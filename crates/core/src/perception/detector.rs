@@ -16,7 +16,7 @@ use super::lanes::Lanes;
 use super::map::CentroidMap;
 use super::paper::Paper;
 use super::preprocess::{PlaneRule, Preprocessor};
-use super::{Detection, RowEstimate, RowStatus, Scan};
+use super::{Detection, RowEstimate, RowStatus, Scan, Tilt};
 
 /// Points of a full VLP-16 revolution (16 rings × 1800 azimuths): the preprocessing buffers start at
 /// this size so that a live sensor never makes them grow.
@@ -68,7 +68,7 @@ impl RowDetector {
     pub fn new(config: DetectorConfig) -> Result<Self, ConfigError> {
         config.validate()?;
         Ok(Self {
-            pre: Preprocessor::new(VLP16_POINTS),
+            pre: Preprocessor::new(VLP16_POINTS, &config),
             map: CentroidMap::new(config.map_capacity),
             paper: Paper::new(&config),
             lanes: Lanes::new(&config),
@@ -111,7 +111,7 @@ impl RowDetector {
                 self.forget_rows();
             }
         }
-        if self.pre.run(scan.points, mount, &self.config, self.plane_rule()) == 0 {
+        if self.pre.run(t, scan.points, mount, &self.config, self.plane_rule()) == 0 {
             return invalid;
         }
         self.last = Some((t, odom));
@@ -130,7 +130,7 @@ impl RowDetector {
         let c = &self.config;
         match (stage, c.mode) {
             (Stage::Preprocess, _) => {
-                self.pre.run(scan.points, mount, c, self.plane_rule()) + self.pre.canopy.len()
+                self.pre.run(scan.stamp_s, scan.points, mount, c, self.plane_rule()) + self.pre.canopy.len()
             }
             (Stage::Cluster, DetectorMode::Paper) => {
                 self.paper.cluster_bins(&self.pre.canopy, mount.x_m, &odom, c, &mut self.map);
@@ -266,6 +266,13 @@ impl RowDetector {
     /// The configuration this detector runs with.
     pub fn config(&self) -> &DetectorConfig {
         &self.config
+    }
+
+    /// The tilt of the surface below the sensor after the last scan (default mode; the paper mode is
+    /// never levelled and reports [`LevelStatus::Off`](super::LevelStatus::Off)). Kept
+    /// across [`RowDetector::reset`]: it belongs to the mount, not to a lane.
+    pub fn tilt(&self) -> Tilt {
+        self.pre.level.tilt()
     }
 
     /// Row centroids of the map in `base_link` at the last scan, m (for markers and plots).

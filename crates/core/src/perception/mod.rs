@@ -5,7 +5,8 @@
 //! the ROS node, evaluation). The detector itself lives in the sub-modules, in the order of the flow:
 //!
 //! ```text
-//! Scan (sensor) ─► preprocess: base_link, FOV/range crop, canopy above a virtual ground plane
+//! Scan (sensor) ─► preprocess: base_link, FOV/range crop, level (default mode), canopy above a virtual
+//!                  ground plane
 //!               ─► paper:   K-means per depth bin ─► centroid map (odom) ─► RANSAC, first row left/right
 //!               ─► lanes:   rows binned against the predicted lane ─► centroid map (odom)
 //!                           ─► joint least squares of all rows (offset, heading, curvature, spacing) ─► row end
@@ -26,6 +27,7 @@ use serde::{Deserialize, Serialize};
 mod config;
 mod detector;
 mod lanes;
+mod level;
 mod map;
 mod paper;
 mod preprocess;
@@ -35,6 +37,7 @@ pub use config::{DetectorConfig, DetectorMode};
 pub use detector::RowDetector;
 #[doc(hidden)]
 pub use detector::Stage;
+pub use level::{LevelStatus, Tilt};
 
 use crate::geometry::Point3;
 

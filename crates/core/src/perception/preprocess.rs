@@ -7,11 +7,14 @@
 //! centroid of the cropped points (eqs. 1-2), raised by `plane_raise_m`. The default mode instead places
 //! it halfway between robust ground and canopy-top levels (5th and 95th height percentiles), which keeps
 //! low weeds and ground noise out even when most returns come from the ground, and drops returns
-//! floating more than [`ABOVE_TOP_M`] above the canopy top (dust, insects).
+//! floating more than [`ABOVE_TOP_M`] above the canopy top (dust, insects). In the default mode the
+//! cropped points are first levelled by the tilt the scan shows ([`super::level`]), so that a LiDAR off
+//! its configured mount still puts the plane parallel to the ground.
 
 use crate::geometry::{Mount, Point3};
 
 use super::config::DetectorConfig;
+use super::level::Level;
 
 /// Height histogram bin, m, and its span below/above `base_link`'s origin for the robust plane.
 const Z_BIN_M: f32 = 0.01;
@@ -66,23 +69,28 @@ pub(crate) struct Preprocessor {
     pub(crate) canopy: Vec<[f32; 3]>,
     /// Height of the plane used on the last scan, m in `base_link`.
     pub(crate) plane_z_m: f32,
+    /// The levelling stage and its estimate (default mode).
+    pub(crate) level: Level,
     z_hist: Vec<u32>,
 }
 
 impl Preprocessor {
-    pub(crate) fn new(capacity: usize) -> Self {
+    pub(crate) fn new(capacity: usize, config: &DetectorConfig) -> Self {
         Self {
             cropped: Vec::with_capacity(capacity),
             canopy: Vec::with_capacity(capacity),
             plane_z_m: 0.0,
+            level: Level::new(config),
             z_hist: vec![0; Z_BINS],
         }
     }
 
-    /// Crops `points` and splits off the canopy. Returns the number of finite points in the scan.
-    /// Never allocates once the buffers have grown to the largest scan seen.
+    /// Crops `points` (stamped `t_s`, s), levels them under the percentile rule and splits off the
+    /// canopy. Returns the number of finite points in the scan. Never allocates once the buffers have
+    /// grown to the largest scan seen.
     pub(crate) fn run(
         &mut self,
+        t_s: f64,
         points: &[Point3],
         mount: &Mount,
         config: &DetectorConfig,
@@ -95,7 +103,6 @@ impl Preprocessor {
             ((config.range_m * config.range_m) as f32, (config.min_range_m * config.min_range_m) as f32);
         let tan_half = (config.fov_deg.to_radians() * 0.5).tan() as f32;
         let mut finite = 0usize;
-        let mut z_sum = 0.0f64;
         for p in points {
             if !p.is_finite() {
                 continue;
@@ -113,15 +120,20 @@ impl Preprocessor {
                 continue;
             }
             let z = f.r[2][0] * p.x + f.r[2][1] * p.y + f.r[2][2] * p.z + f.t[2];
-            z_sum += z as f64;
             self.cropped.push([dx + f.t[0], dy + f.t[1], z]);
+        }
+        if rule == PlaneRule::Percentile {
+            self.level_cropped(t_s, f.t, config);
         }
         if self.cropped.is_empty() {
             self.plane_z_m = 0.0;
             return finite;
         }
         let (base, top) = match rule {
-            PlaneRule::Centroid => ((z_sum / self.cropped.len() as f64) as f32, f32::INFINITY),
+            PlaneRule::Centroid => {
+                let z_sum: f64 = self.cropped.iter().map(|p| p[2] as f64).sum();
+                ((z_sum / self.cropped.len() as f64) as f32, f32::INFINITY)
+            }
             PlaneRule::Percentile => self.percentile_levels(config.min_plant_height_m as f32),
         };
         self.plane_z_m = base + config.plane_raise_m as f32;
@@ -130,6 +142,28 @@ impl Preprocessor {
             self.cropped.iter().filter(|p| p[2] > plane && p[2] <= top).map(|p| [p[0], p[1], p[2] - plane]),
         );
         finite
+    }
+
+    /// Updates the tilt estimate from this scan and rotates the cropped points about the sensor origin
+    /// `o` (`base_link`, m) by the correction, when there is one.
+    fn level_cropped(&mut self, t_s: f64, o: [f32; 3], config: &DetectorConfig) {
+        let Some(q) = self.level.update(t_s, &self.cropped, o, config) else { return };
+        let m = q.matrix();
+        let mut r = [[0.0f32; 3]; 3];
+        for (i, row) in r.iter_mut().enumerate() {
+            for (j, v) in row.iter_mut().enumerate() {
+                *v = m[(i, j)] as f32;
+            }
+        }
+        for p in &mut self.cropped {
+            let d = [p[0] - o[0], p[1] - o[1], p[2] - o[2]];
+            for (out, row) in p.iter_mut().zip(&r) {
+                *out = row[0] * d[0] + row[1] * d[1] + row[2] * d[2];
+            }
+            for (out, oi) in p.iter_mut().zip(&o) {
+                *out += oi;
+            }
+        }
     }
 
     /// The canopy plane (halfway between the 5th and 95th height percentiles, at least `min_height_m`
@@ -184,8 +218,8 @@ mod tests {
             sensor_point(&mount, [-1.0, 0.0, 0.0]), // behind the sensor
             Point3::new(f32::NAN, 0.0, 0.0),
         ];
-        let mut pre = Preprocessor::new(8);
-        let finite = pre.run(&pts, &mount, &cfg, PlaneRule::Centroid);
+        let mut pre = Preprocessor::new(8, &cfg);
+        let finite = pre.run(0.0, &pts, &mount, &cfg, PlaneRule::Centroid);
         assert_eq!(finite, 5);
         assert_eq!(pre.cropped.len(), 2);
         assert!((pre.plane_z_m - 0.25).abs() < 1e-4, "{}", pre.plane_z_m);
@@ -210,8 +244,8 @@ mod tests {
         // 90 ground points and 10 canopy points at 0.4 m: the centroid (0.04 m) would let ground noise
         // through; the percentile rule puts the plane near 0.2 m.
         let pts = ground_with_plant_tops(&mount);
-        let mut pre = Preprocessor::new(8);
-        pre.run(&pts, &mount, &cfg, PlaneRule::Percentile);
+        let mut pre = Preprocessor::new(8, &cfg);
+        pre.run(0.0, &pts, &mount, &cfg, PlaneRule::Percentile);
         assert!((pre.plane_z_m - 0.2).abs() < 0.02, "{}", pre.plane_z_m);
         assert_eq!(pre.canopy.len(), 10);
     }
@@ -224,8 +258,8 @@ mod tests {
         let cfg = DetectorConfig::default();
         let mut pts = ground_with_plant_tops(&mount);
         pts.push(sensor_point(&mount, [2.5, 0.2, 1.2]));
-        let mut pre = Preprocessor::new(8);
-        pre.run(&pts, &mount, &cfg, PlaneRule::Percentile);
+        let mut pre = Preprocessor::new(8, &cfg);
+        pre.run(0.0, &pts, &mount, &cfg, PlaneRule::Percentile);
         assert_eq!(pre.canopy.len(), 10);
         assert!(pre.canopy.iter().all(|p| p[2] < 0.3), "{:?}", pre.canopy);
     }
