@@ -584,11 +584,11 @@ impl Lanes {
     /// the row; where the mass of the gate lies at one edge it walks there. Settled so far out that it
     /// reaches past the gate, the canopy's peak lies outside the gate: the points belong to something
     /// else, seen through the edge of the gate. Two such things pulled the row fit: a tall weed clump
-    /// between the rows that reaches into a row's gate (soak seeds 919, 451, 50: weeds as tall as young
-    /// corn, 0.3 m wide, coming within 0.12 m of the rows), and, at a field's edge, the outer leaves of
-    /// the last row in the gate of a row beyond it that the lattice predicts but that does not exist
-    /// (seed 119, grown soybean: the fit took their centroids for that row and shrank the spacing by
-    /// a fifth on re-entering the field). `core` = 0 keeps every bin.
+    /// between the rows that reaches into a row's gate (`fault-weed-patch`, soak seed 50: weeds as tall
+    /// as young corn, 0.3 m wide, coming within 0.12 m of the rows), and, at a field's edge, the outer
+    /// leaves of the last row in the gate of a row beyond it that the lattice predicts but that does not
+    /// exist (seed 119, grown soybean: the fit took their centroids for that row and shrank the spacing
+    /// by a fifth on re-entering the field). `core` = 0 keeps every bin.
     fn peaks_inside(&self, i: usize, gate: f64, core: f64) -> bool {
         let Some(cells) = self.cells.get(i * CELLS..(i + 1) * CELLS) else { return false };
         if core <= 0.0 {
