@@ -91,6 +91,11 @@ const ENVELOPE_SLICE_M: f64 = 0.5;
 const ENVELOPE_SLICES: usize = 16;
 /// Fewest returns in a lateral bin for its ground share to count.
 const MIN_BIN_RETURNS: f64 = 3.0;
+/// Lateral cells per bin across its gate, for the peak test of [`Lanes::peaks_inside`]: one cell is
+/// about 3 cm wide at a 0.75 m spacing.
+const CELLS: usize = 16;
+/// Most moves of the peak test's window; it settles after two or three.
+const PEAK_STEPS: usize = 4;
 /// Fewest centroids from the current scan for it to count as seeing the rows.
 const MIN_FRESH_CENTROIDS: usize = 2;
 /// Least total centroid weight (full-weight centroids) for a correction to be accepted.
@@ -188,6 +193,14 @@ struct Bin {
     sy: f64,
 }
 
+/// One lateral cell of a bin: the height weight of its points and that weight times their residual
+/// from the predicted row, m.
+#[derive(Debug, Clone, Copy, Default)]
+struct Cell {
+    w: f64,
+    wd: f64,
+}
+
 /// What the default pipeline knows after a scan.
 #[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct LaneOutput {
@@ -209,6 +222,8 @@ pub(crate) struct Lanes {
     model: Option<(Lane, Pose2)>,
     last_update_s: f64,
     bins: Vec<Bin>,
+    /// Lateral profile of every bin across its gate, bin-major ([`CELLS`] per bin).
+    cells: Vec<Cell>,
     visible: Vec<u32>,
     x_bins: usize,
     hist: Vec<f64>,
@@ -244,6 +259,7 @@ impl Lanes {
             model: None,
             last_update_s: f64::NEG_INFINITY,
             bins: vec![Bin::default(); ROWS * x_bins],
+            cells: vec![Cell::default(); ROWS * x_bins * CELLS],
             visible: vec![0; x_bins],
             x_bins,
             hist: vec![0.0; HIST_BINS],
@@ -304,7 +320,7 @@ impl Lanes {
             self.last_key = None;
         }
         self.measure(canopy, cropped, &predicted, config);
-        let fresh = self.store_centroids(odom, config, map);
+        let fresh = self.store_centroids(&predicted, odom, config, map);
         let fitted = self.correct(&predicted, odom, config, map, centroids);
         // Only this scan's own centroids count as seeing the rows: the map alone would keep a lane alive
         // for as long as its centroids stay ahead of the robot.
@@ -338,7 +354,7 @@ impl Lanes {
             return 0;
         };
         self.measure(canopy, cropped, &predicted, config);
-        self.store_centroids(odom, config, map)
+        self.store_centroids(&predicted, odom, config, map)
     }
 
     /// The correct stage alone (least squares on the map), for the per-stage benchmark; returns the
@@ -517,11 +533,14 @@ impl Lanes {
         }
     }
 
-    /// Bins the canopy points gated to the predicted rows, and the visible (any) points near the lane.
+    /// Bins the canopy points gated to the predicted rows (with each bin's lateral profile across the
+    /// gate), and the visible (any) points near the lane.
     fn measure(&mut self, canopy: &[[f32; 3]], cropped: &[[f32; 3]], lane: &Lane, config: &DetectorConfig) {
         self.bins.iter_mut().for_each(|b| *b = Bin::default());
+        self.cells.iter_mut().for_each(|c| *c = Cell::default());
         self.visible.iter_mut().for_each(|v| *v = 0);
         let gate = config.gate_fraction * lane.s;
+        let inv_cell = CELLS as f64 / (2.0 * gate);
         let inv_bin = 1.0 / config.map_bin_m;
         for p in canopy {
             let (x, y) = (p[0] as f64, p[1] as f64);
@@ -532,13 +551,18 @@ impl Lanes {
             // Weighting by height squared favours the crest: a row seen from one side shows more of its
             // near flank, and the flank would pull a plain mean towards the sensor.
             let w = (p[2] as f64).powi(2) + HEIGHT_WEIGHT_FLOOR_M2;
-            if let Some(i) = self.bin_index(j, x, inv_bin)
-                && let Some(b) = self.bins.get_mut(i)
-            {
+            let Some(i) = self.bin_index(j, x, inv_bin) else { continue };
+            if let Some(b) = self.bins.get_mut(i) {
                 b.n += 1;
                 b.w += w;
                 b.sx += w * x;
                 b.sy += w * y;
+            }
+            // |d| <= gate, so the cell is in 0..=CELLS; the last edge joins the last cell.
+            let k = (((d + gate) * inv_cell) as usize).min(CELLS - 1);
+            if let Some(c) = self.cells.get_mut(i * CELLS + k) {
+                c.w += w;
+                c.wd += w * d;
             }
         }
         let reach = 2.0 * lane.s;
@@ -554,20 +578,72 @@ impl Lanes {
         }
     }
 
+    /// Whether the canopy of bin `i` peaks inside its gate (half-width `gate`, m). A window `core` m either
+    /// side, started at the mean residual of the whole gate, moves to the mean of the cells it covers
+    /// until it settles (a flat-kernel mean shift on the bin's lateral profile): on a row it settles on
+    /// the row; where the mass of the gate lies at one edge it walks there. Settled so far out that it
+    /// reaches past the gate, the canopy's peak lies outside the gate: the points belong to something
+    /// else, seen through the edge of the gate. Two such things pulled the row fit: a tall weed clump
+    /// between the rows that reaches into a row's gate (`fault-weed-patch`, soak seed 50: weeds as tall
+    /// as young corn, 0.3 m wide, coming within 0.12 m of the rows), and, at a field's edge, the outer
+    /// leaves of the last row in the gate of a row beyond it that the lattice predicts but that does not
+    /// exist (seed 119, grown soybean: the fit took their centroids for that row and shrank the spacing
+    /// by a fifth on re-entering the field). `core` = 0 keeps every bin.
+    fn peaks_inside(&self, i: usize, gate: f64, core: f64) -> bool {
+        let Some(cells) = self.cells.get(i * CELLS..(i + 1) * CELLS) else { return false };
+        if core <= 0.0 {
+            return true;
+        }
+        let cell_m = 2.0 * gate / CELLS as f64;
+        let (w, wd) = cells.iter().fold((0.0, 0.0), |(w, wd), c| (w + c.w, wd + c.wd));
+        if w <= 0.0 {
+            return false;
+        }
+        let mut centre = wd / w;
+        for _ in 0..PEAK_STEPS {
+            let (w, wd) = cells
+                .iter()
+                .enumerate()
+                .filter(|(k, _)| (-gate + (*k as f64 + 0.5) * cell_m - centre).abs() <= core)
+                .fold((0.0, 0.0), |(w, wd), (_, c)| (w + c.w, wd + c.wd));
+            if w <= 0.0 {
+                // Nothing within the window around the mean: two clumps at the gate's two edges.
+                return false;
+            }
+            let next = wd / w;
+            let settled = (next - centre).abs() < 0.5 * cell_m;
+            centre = next;
+            if settled {
+                break;
+            }
+        }
+        centre.abs() <= gate - core
+    }
+
     fn bin_index(&self, j: i32, x: f64, inv_bin: f64) -> Option<usize> {
         let row = usize::try_from(j - J_MIN).ok().filter(|&r| r < ROWS)?;
         let xi = (x - X_LO_M) * inv_bin;
         (xi >= 0.0 && (xi as usize) < self.x_bins).then(|| row * self.x_bins + xi as usize)
     }
 
-    /// Collects this scan's bin centroids with enough points into `current` (`base_link`), and stores
+    /// Collects this scan's bin centroids with enough points whose canopy peaks inside the gate of
+    /// `lane` (the predicted lane) into `current` (`base_link`), and stores
     /// them in the map when the robot has moved a keyframe distance since the last stored set. Returns
     /// how many there are.
-    fn store_centroids(&mut self, odom: &Pose2, config: &DetectorConfig, map: &mut CentroidMap) -> usize {
+    fn store_centroids(
+        &mut self,
+        lane: &Lane,
+        odom: &Pose2,
+        config: &DetectorConfig,
+        map: &mut CentroidMap,
+    ) -> usize {
         self.current.clear();
-        for b in self.bins.iter().filter(|b| b.n as usize >= config.map_min_points) {
-            let n = b.n as f64;
-            self.current.push([b.sx / b.w, b.sy / b.w, n.min(FULL_WEIGHT_POINTS) / FULL_WEIGHT_POINTS]);
+        let (gate, core) = (config.gate_fraction * lane.s, config.core_fraction * lane.s);
+        for (i, b) in self.bins.iter().enumerate() {
+            if b.n as usize >= config.map_min_points && self.peaks_inside(i, gate, core) {
+                let n = b.n as f64;
+                self.current.push([b.sx / b.w, b.sy / b.w, n.min(FULL_WEIGHT_POINTS) / FULL_WEIGHT_POINTS]);
+            }
         }
         let keyframe = self.last_key.is_none_or(|k| {
             (odom.x - k.x).hypot(odom.y - k.y) >= KEYFRAME_M
@@ -1002,6 +1078,56 @@ mod tests {
         let cfg = DetectorConfig::default();
         let pts = rows_of_points(&[-1.025, -0.275, 0.475, 1.225], 25f64.to_radians());
         assert_eq!(Lanes::new(&cfg).search(&pts, &pts, &cfg), None);
+    }
+
+    /// Canopy points of one along-x bin (x in 2.0-2.25 m) around the first row left of a straight lane
+    /// (o = 0, s = 0.75 m, the row at y = 0.375 m): `row` points at the row, 0.3 m high, spread ±2 cm,
+    /// and `weed` points of a clump 0.15-0.2 m beside it (inside the row's ±0.225 m gate), 0.4 m high.
+    fn row_and_clump(row: usize, weed: usize) -> Vec<[f32; 3]> {
+        let row_pts = (0..row).map(|i| {
+            let f = i as f64 / row.max(1) as f64;
+            [(2.0 + 0.24 * f) as f32, (0.375 + 0.04 * (f - 0.5)) as f32, 0.3]
+        });
+        let weed_pts = (0..weed).map(|i| {
+            let f = i as f64 / weed.max(1) as f64;
+            [(2.0 + 0.24 * f) as f32, (0.375 + 0.15 + 0.05 * f) as f32, 0.4]
+        });
+        row_pts.chain(weed_pts).collect()
+    }
+
+    /// This scan's centroids of the first row left (y > 0) after measuring `canopy` against the lane
+    /// of [`row_and_clump`].
+    fn first_left_centroids(canopy: &[[f32; 3]], cfg: &DetectorConfig) -> Vec<[f64; 3]> {
+        let mut lanes = Lanes::new(cfg);
+        let mut map = CentroidMap::new(cfg.map_capacity);
+        let lane = Lane { o: 0.0, a: 0.0, b: 0.0, s: 0.75, crests: 1.0 };
+        lanes.measure(canopy, canopy, &lane, cfg);
+        lanes.store_centroids(&lane, &Pose2::default(), cfg, &mut map);
+        lanes.current.iter().copied().filter(|c| c[1] > 0.0).collect()
+    }
+
+    #[test]
+    fn a_bin_whose_canopy_peaks_at_the_gate_edge_is_left_out() {
+        // A sparse row and a heavy weed clump at the edge of its gate (soak seeds 919, 451): the
+        // window walks to the clump and reaches past the gate, so the bin gives no centroid.
+        let cfg = DetectorConfig::default();
+        assert!(first_left_centroids(&row_and_clump(6, 40), &cfg).is_empty());
+    }
+
+    #[test]
+    fn a_row_with_a_smaller_clump_beside_it_keeps_its_bin() {
+        // The row outweighs the clump: the window settles on the row and the bin stays (its centroid is
+        // the gate's plain mean, as before).
+        let cfg = DetectorConfig::default();
+        let c = first_left_centroids(&row_and_clump(40, 6), &cfg);
+        assert_eq!(c.len(), 1, "{c:?}");
+        assert!((c[0][1] - 0.375).abs() < 0.05, "{c:?}");
+    }
+
+    #[test]
+    fn no_core_window_keeps_every_bin() {
+        let cfg = DetectorConfig { core_fraction: 0.0, ..DetectorConfig::default() };
+        assert_eq!(first_left_centroids(&row_and_clump(6, 40), &cfg).len(), 1);
     }
 
     #[test]

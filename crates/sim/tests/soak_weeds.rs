@@ -1,0 +1,39 @@
+//! Soak seeds (issue 6) whose row fit was pulled by canopy that is not a row seen through the edge of a
+//! row's gate: tall weed clumps between the rows, and the outer leaves of a field's last row. Each test
+//! replays the seed's case as `soak_case` draws it, faults included, and asserts no crop contact and no
+//! unsafe command, and that the same case with every bin kept still touches plants; the summary check
+//! catches a generator that changed. Guards
+//! `DetectorConfig::core_fraction` (the detector leaves out bins whose canopy peaks outside the gate).
+
+use croprow_sim::experiment::soak::{Outcome, run_case, soak_case};
+
+/// Runs the soak case of `seed` (whose summary starts with `summary`) once with every bin kept
+/// (`core_fraction` = 0: it must touch plants, as it did) and once as configured.
+fn run_seed(seed: u64, summary: &str) -> Outcome {
+    let case = soak_case(seed);
+    assert!(case.scenario.summary.starts_with(summary), "{}", case.scenario.summary);
+    let mut unguarded = case.clone();
+    unguarded.navigator.detector.core_fraction = 0.0;
+    let before = run_case(&unguarded).expect("runs");
+    assert!(before.crop_contacts > 0, "the case no longer provokes the failure: {before:?}");
+    run_case(&case).expect("runs")
+}
+
+#[test]
+fn a_field_edge_does_not_shrink_the_spacing_on_re_entry() {
+    // Fault-free grown soybean, 4 rows: re-entering the field after the first headland turn, the
+    // lattice predicted a row beyond the field's last one, took that row's outer leaves for it and
+    // shrank the spacing from 0.74 m to 0.54 m; the robot followed the shrunken lattice onto a row
+    // (2 contacts, one plant).
+    let o = run_seed(119, "grown soybean 14.8 m x 4 rows 0.74 m");
+    assert_eq!((o.crop_contacts, o.unsafe_commands), (0, 0), "{o:?}");
+}
+
+#[test]
+fn tall_weeds_in_view_after_a_headland_turn_do_not_pull_the_fit() {
+    // Young corn with 0.5 m weeds (taller than the crop) over x = 7-9.3 m: re-acquired after the
+    // first turn with the patch in view, the fit took the weed clumps reaching into the rows' gates
+    // and turned 6-10° off the rows (6 contacts).
+    let o = run_seed(50, "young corn 10.2 m x 7 rows 0.78 m");
+    assert_eq!((o.crop_contacts, o.unsafe_commands), (0, 0), "{o:?}");
+}
