@@ -110,6 +110,16 @@ pub struct DetectorConfig {
     /// Default mode: `EndOfRow` is raised once the row end is this close ahead of `base_link`, m.
     /// Default 0.5.
     pub end_trigger_m: f64,
+    /// Default mode: fit a shear of the centroid map, the sideways motion the odometry did not sense
+    /// (a slide on wet soil) per metre driven, so that the lane describes the rows where they are now
+    /// rather than where old centroids put them. Default true.
+    pub shear_enabled: bool,
+    /// Default mode: prior weight drawing the shear towards none, in full-weight centroids times m² (a
+    /// centroid at 1 m age moved by the shear). Default 20 (measured, see docs/faults.md).
+    pub shear_prior_m2: f64,
+    /// Default mode: largest shear fitted, m per metre driven; beyond it the shear is held at the bound.
+    /// Default 0.2 (a 0.1 m/s slide at 0.5 m/s is 0.2).
+    pub shear_max_per_m: f64,
 }
 
 impl Default for DetectorConfig {
@@ -145,6 +155,9 @@ impl Default for DetectorConfig {
             fit_curvature: true,
             end_empty_m: 1.0,
             end_trigger_m: 0.5,
+            shear_enabled: true,
+            shear_prior_m2: 20.0,
+            shear_max_per_m: 0.2,
         }
     }
 }
@@ -197,6 +210,8 @@ impl DetectorConfig {
         check_count("detector.map_capacity", self.map_capacity, 16, 1_000_000)?;
         check_range("detector.end_empty_m", self.end_empty_m, 0.1, 50.0)?;
         check_range("detector.end_trigger_m", self.end_trigger_m, -10.0, 10.0)?;
+        check_range("detector.shear_prior_m2", self.shear_prior_m2, 1e-3, 1e9)?;
+        check_range("detector.shear_max_per_m", self.shear_max_per_m, 0.0, 1.0)?;
         Ok(())
     }
 }

@@ -21,7 +21,7 @@
 //! 4. **row end**: the canopy of the lane is declared ended where at least `end_empty_m` of visible ground
 //!    follows the last canopy bin; the end is kept in `odom` and cleared if canopy reappears (a gap).
 
-use nalgebra::{Matrix3, Matrix4, Vector3, Vector4};
+use nalgebra::{Matrix3, Matrix5, Vector3, Vector5};
 
 use crate::geometry::{Pose2, wrap_angle};
 
@@ -63,6 +63,8 @@ const CAUCHY_M: f64 = 0.05;
 const PRIOR_SPACING: f64 = 5.0;
 const PRIOR_CURVATURE: f64 = 8.0 * 256.0;
 const PRIOR_FREE: f64 = 1e-3;
+/// Prior weight that holds a term at its prior value (a term not fitted).
+const PINNED: f64 = 1e12;
 /// Fewest canopy points for the start-up search, and the weakest normalised autocorrelation peak
 /// accepted as a row pattern.
 const MIN_SEARCH_POINTS: usize = 30;
@@ -222,8 +224,9 @@ pub(crate) struct Lanes {
     filled: Vec<bool>,
     /// Highest canopy point per along-x slice and lateral bin, slice-major (0: none).
     slices: Vec<f64>,
-    /// Centroids of the fit, `[x, y, weight]` in `base_link`.
-    local: Vec<[f64; 3]>,
+    /// Centroids of the fit, `[x, y, weight, age]` in `base_link`, the age in metres driven since the
+    /// centroid was stored.
+    local: Vec<[f64; 4]>,
     /// This scan's centroids, `[x, y, weight]` in `base_link`.
     current: Vec<[f64; 3]>,
     /// Pose of the last centroids stored in the map.
@@ -233,6 +236,20 @@ pub(crate) struct Lanes {
     last_pose: Option<Pose2>,
     /// Row end in `odom`: point on the lane centre and the row direction, rad.
     end: Option<[f64; 3]>,
+    /// Shear of the map found by the last correction, m per metre driven (see [`Lanes::correct`]).
+    shear_per_m: f64,
+}
+
+/// A correction's result.
+#[derive(Debug, Clone, Copy)]
+struct Fit {
+    lane: Lane,
+    /// Centroid weight supporting the first row left and right (full-weight centroids).
+    support: [f64; 2],
+    /// Farthest supporting centroid of the first row left and right, m along x.
+    far_x_m: [f64; 2],
+    /// Lateral motion of the map per metre driven, m/m, `base_link` y.
+    shear_per_m: f64,
 }
 
 impl Lanes {
@@ -258,6 +275,7 @@ impl Lanes {
             odometer_m: 0.0,
             last_pose: None,
             end: None,
+            shear_per_m: 0.0,
         }
     }
 
@@ -267,6 +285,7 @@ impl Lanes {
         self.last_pose = None;
         self.end = None;
         self.last_update_s = f64::NEG_INFINITY;
+        self.shear_per_m = 0.0;
     }
 
     /// One scan: `canopy` and `cropped` points in `base_link`, `odom` its pose at `t_s`.
@@ -288,6 +307,7 @@ impl Lanes {
         if self.model.is_some() && t_s - self.last_update_s > config.lost_after_s {
             self.model = None;
             self.last_key = None;
+            self.shear_per_m = 0.0;
             map.clear();
         }
         let predicted = match self.model {
@@ -302,6 +322,7 @@ impl Lanes {
             // A new lane hypothesis: evidence stored against an older one would only confuse it.
             map.clear();
             self.last_key = None;
+            self.shear_per_m = 0.0;
         }
         self.measure(canopy, cropped, &predicted, config);
         let fresh = self.store_centroids(odom, config, map);
@@ -310,7 +331,10 @@ impl Lanes {
         // for as long as its centroids stay ahead of the robot.
         let updated = fitted.is_some() && fresh >= MIN_FRESH_CENTROIDS;
         let (lane, support, far_x_m) = match fitted {
-            Some((lane, support, far)) => (lane, support, far),
+            Some(fit) => {
+                self.shear_per_m = fit.shear_per_m;
+                (fit.lane, fit.support, fit.far_x_m)
+            }
             None => (predicted, [0.0; 2], [0.0; 2]),
         };
         if updated {
@@ -582,8 +606,16 @@ impl Lanes {
         self.current.len()
     }
 
-    /// Two-pass weighted least squares of `(o, s, a, b)` on the map, regularised towards `predicted`.
-    /// Returns the lane, the support and the farthest centroid of the first left and right rows.
+    /// Two-pass weighted least squares of `(o, s, a, b, k)` on the map, regularised towards `predicted`
+    /// (and `k` towards 0). Returns the lane, the support and the farthest centroid of the first left
+    /// and right rows, and the shear `k`.
+    ///
+    /// The shear `k` (m per metre driven, `base_link` y) models motion the odometry did not sense: a
+    /// sideways slide moves the robot but not the centroids it stored in `odom`, so a centroid stored
+    /// `d` metres of driving ago sits `k·d` off the row it was measured on. The same stretch of row is
+    /// stored once per keyframe while it crosses the view, at ages spread over the view's length, so
+    /// `k` separates from the heading `a`. The lane the fit returns describes the rows at age 0: where
+    /// they are now.
     fn correct(
         &mut self,
         predicted: &Lane,
@@ -591,7 +623,7 @@ impl Lanes {
         config: &DetectorConfig,
         map: &CentroidMap,
         centroids: &mut Vec<[f64; 2]>,
-    ) -> Option<(Lane, [f64; 2], [f64; 2])> {
+    ) -> Option<Fit> {
         let x_max = config.range_m + 11.0;
         let gate = config.gate_fraction * predicted.s;
         // This scan's centroids, plus the map where this scan does not reach (near and behind the robot,
@@ -599,51 +631,51 @@ impl Lanes {
         let view_start = self.current.iter().map(|c| c[0]).fold(x_max, f64::min);
         let (sin, cos) = odom.yaw.sin_cos();
         self.local.clear();
-        self.local.extend_from_slice(&self.current);
+        self.local.extend(self.current.iter().map(|&[x, y, w]| [x, y, w, 0.0]));
         for p in map.points() {
             let (dx, dy) = (p[0] - odom.x, p[1] - odom.y);
             let x = cos * dx + sin * dy;
             if x >= -config.behind_m && x < view_start {
                 // Odometry drift grows with the distance driven since the centroid was stored.
-                let age = (self.odometer_m - p[3]) / AGE_SCALE_M;
-                self.local.push([x, cos * dy - sin * dx, p[2] / (1.0 + age * age)]);
+                let age_m = (self.odometer_m - p[3]).max(0.0);
+                let age = age_m / AGE_SCALE_M;
+                self.local.push([x, cos * dy - sin * dx, p[2] / (1.0 + age * age), age_m]);
             }
         }
+        // The shear is an unknown only when enabled; otherwise it is pinned at 0 like a curvature that
+        // is not fitted.
+        let (shear_weight, shear_max) = if config.shear_enabled {
+            (config.shear_prior_m2, config.shear_max_per_m)
+        } else {
+            (PINNED, 0.0)
+        };
+        let curvature_weight = if config.fit_curvature { PRIOR_CURVATURE } else { PINNED };
+        let b_prior = if config.fit_curvature { predicted.b } else { 0.0 };
         let mut lane = *predicted;
+        let mut shear = self.shear_per_m.clamp(-shear_max, shear_max);
         let mut support = [0.0; 2];
         let mut far = [0.0f64; 2];
         let crests = predicted.crests as i32;
         for pass in 0..2 {
-            // Sums of the symmetric normal matrix of φ = [1, q, x, x²] (q = j + ½) and of φ·y.
-            let [mut sw, mut sq, mut sx, mut sxx, mut sqq, mut sqx, mut sqxx, mut sxxx, mut sx4] = [0.0; 9];
-            let [mut sy, mut sqy, mut sxy, mut sxxy] = [0.0; 4];
+            // Normal matrix and right-hand side of φ = [1, q, x, x², d] (q = j + ½, d the age).
+            let mut n = Matrix5::<f64>::zeros();
+            let mut r = Vector5::<f64>::zeros();
             support = [0.0; 2];
             far = [0.0; 2];
             let last = pass == 1;
             if last {
                 centroids.clear();
             }
-            for &[x, y, weight] in &self.local {
-                let (j, d) = lane.assign(x, y);
+            for &[x, y, weight, age_m] in &self.local {
+                let (j, d) = lane.assign(x, y - shear * age_m);
                 if d.abs() > gate || !(J_MIN..J_MIN + ROWS as i32).contains(&j) {
                     continue;
                 }
                 let robust = if pass == 0 { 1.0 } else { 1.0 / (1.0 + (d / CAUCHY_M).powi(2)) };
                 let w = weight * robust;
-                let (q, xx) = (j as f64 + 0.5, x * x);
-                sw += w;
-                sq += w * q;
-                sx += w * x;
-                sxx += w * xx;
-                sqq += w * q * q;
-                sqx += w * q * x;
-                sqxx += w * q * xx;
-                sxxx += w * xx * x;
-                sx4 += w * xx * xx;
-                sy += w * y;
-                sqy += w * q * y;
-                sxy += w * x * y;
-                sxxy += w * xx * y;
+                let phi = Vector5::new(1.0, j as f64 + 0.5, x, x * x, age_m);
+                n.ger(w, &phi, &phi, 1.0);
+                r.axpy(w * y, &phi, 1.0);
                 // The first row left is crests 0..c of the canopy lattice, the first right -c..0.
                 if (-crests..crests).contains(&j) {
                     let k = usize::from(j < 0);
@@ -654,39 +686,37 @@ impl Lanes {
                     centroids.push([x, y]);
                 }
             }
-            if sw < MIN_FIT_WEIGHT {
+            if n[(0, 0)] < MIN_FIT_WEIGHT {
                 return None;
             }
-            let mut n = Matrix4::new(
-                sw, sq, sx, sxx, //
-                sq, sqq, sqx, sqxx, //
-                sx, sqx, sxx, sxxx, //
-                sxx, sqxx, sxxx, sx4,
-            );
-            let mut r = Vector4::new(sy, sqy, sxy, sxxy);
             // Priors (information form): a lone row cannot tell the spacing, a short stretch cannot tell
-            // the curvature; both then stay at their prediction.
-            let curvature_weight = if config.fit_curvature { PRIOR_CURVATURE } else { 1e12 };
-            let b_prior = if config.fit_curvature { predicted.b } else { 0.0 };
-            for (i, (w, v)) in [
+            // the curvature; both then stay at their prediction. The shear is drawn towards none.
+            let priors = [
                 (PRIOR_FREE, predicted.o),
                 (PRIOR_SPACING, predicted.s),
                 (PRIOR_FREE, predicted.a),
                 (curvature_weight, b_prior),
-            ]
-            .into_iter()
-            .enumerate()
-            {
+                (shear_weight, 0.0),
+            ];
+            for (i, (w, v)) in priors.into_iter().enumerate() {
                 n[(i, i)] += w;
                 r[i] += w * v;
             }
-            let p = n.cholesky()?.solve(&r);
+            let mut p = n.cholesky()?.solve(&r);
+            if config.shear_enabled && p[4].abs() > shear_max {
+                // Outside its bounds the shear is held at the bound and the rest refitted.
+                let bound = p[4].clamp(-shear_max, shear_max);
+                n[(4, 4)] += PINNED;
+                r[4] += PINNED * bound;
+                p = n.cholesky()?.solve(&r);
+            }
             lane = Lane { o: p[0], s: p[1], a: p[2], b: p[3], crests: predicted.crests };
-            if !lane.is_sane(config) {
+            shear = p[4];
+            if !lane.is_sane(config) || !shear.is_finite() {
                 return None;
             }
         }
-        Some((lane.normalised(), support, far))
+        Some(Fit { lane: lane.normalised(), support, far_x_m: far, shear_per_m: shear })
     }
 
     /// Locates where the canopy of the lane ends, from this scan's bins.
