@@ -711,7 +711,7 @@ impl Lanes {
                 p = n.cholesky()?.solve(&r);
             }
             lane = Lane { o: p[0], s: p[1], a: p[2], b: p[3], crests: predicted.crests };
-            shear = p[4];
+            shear = if config.shear_enabled { p[4] } else { 0.0 };
             if !lane.is_sane(config) || !shear.is_finite() {
                 return None;
             }
@@ -1032,6 +1032,71 @@ mod tests {
         let cfg = DetectorConfig::default();
         let pts = rows_of_points(&[-1.025, -0.275, 0.475, 1.225], 25f64.to_radians());
         assert_eq!(Lanes::new(&cfg).search(&pts, &pts, &cfg), None);
+    }
+
+    /// Drives 6 m along straight rows 0.75 m apart (lane centre at `odom` y = 0), 0.1 m per scan,
+    /// while the robot slides `slide_per_m` to the left per metre unseen by the odometry (its pose
+    /// stays on y = 0). Returns the last lane, the shear fitted and the robot's true lateral offset.
+    fn drive_with_slide(slide_per_m: f64, config: &DetectorConfig) -> (Lane, f64, f64) {
+        let mut lanes = Lanes::new(config);
+        let mut map = CentroidMap::new(config.map_capacity);
+        let mut centroids = Vec::new();
+        let mut last = None;
+        let mut y_true = 0.0;
+        for k in 0..60 {
+            let x = 0.1 * k as f64;
+            y_true = slide_per_m * x;
+            let rows: Vec<f64> = (-3..3).map(|j| (j as f64 + 0.5) * 0.75 - y_true).collect();
+            let pts = rows_of_points(&rows, 0.0);
+            let odom = Pose2::new(x, 0.0, 0.0);
+            let out = lanes.step(&pts, &pts, &odom, 0.1 * k as f64, config, &mut map, &mut centroids);
+            last = out.lane.or(last);
+        }
+        (last.unwrap(), lanes.shear_per_m, y_true)
+    }
+
+    #[test]
+    fn a_sheared_map_gives_the_shear_and_the_rows_where_they_are_now() {
+        // A slide of 0.1 m per metre: the shear is found within 0.01 m/m and the lane centre (0.6 m to
+        // the robot's right by now) within 1 cm, heading within 0.3°.
+        for p in [20.0, 5.0, 1.0, 0.1] {
+            let cfg = DetectorConfig { shear_prior_m2: p, ..DetectorConfig::default() };
+            let (lane, shear, y_true) = drive_with_slide(0.1, &cfg);
+            eprintln!("prior {p}: shear {shear} o err {} a {}", lane.o + y_true, lane.a.atan().to_degrees());
+        }
+        let cfg = DetectorConfig::default();
+        let (lane, shear, y_true) = drive_with_slide(0.1, &cfg);
+        assert!((shear - 0.1).abs() < 0.01, "{shear}");
+        assert!((lane.o + y_true).abs() < 0.01, "{lane:?} vs {y_true}");
+        assert!(lane.a.atan().abs() < 0.3f64.to_radians(), "{lane:?}");
+    }
+
+    #[test]
+    fn without_the_shear_term_a_slide_leans_the_lane() {
+        // The same slide with the shear pinned at 0: the old centroids near the robot pull the lane
+        // more than 2 cm or 0.5° off (what the shear term is for).
+        let cfg = DetectorConfig { shear_enabled: false, ..DetectorConfig::default() };
+        let (lane, shear, y_true) = drive_with_slide(0.1, &cfg);
+        assert_eq!(shear, 0.0);
+        let off = (lane.o + y_true).abs() > 0.02 || lane.a.atan().abs() > 0.5f64.to_radians();
+        assert!(off, "{lane:?} vs {y_true}");
+    }
+
+    #[test]
+    fn no_slide_fits_no_shear() {
+        // Odometry that tells the truth: shear below 0.002 m/m, centre within 5 mm.
+        let cfg = DetectorConfig::default();
+        let (lane, shear, _) = drive_with_slide(0.0, &cfg);
+        assert!(shear.abs() < 0.002, "{shear}");
+        assert!(lane.o.abs() < 0.005, "{lane:?}");
+    }
+
+    #[test]
+    fn the_shear_stays_within_its_bound() {
+        // A slide of 0.3 m/m against a bound of 0.05: the fit holds the shear at the bound.
+        let cfg = DetectorConfig { shear_max_per_m: 0.05, ..DetectorConfig::default() };
+        let (_, shear, _) = drive_with_slide(0.3, &cfg);
+        assert!(shear.abs() <= 0.05 + 1e-9, "{shear}");
     }
 
     #[test]
