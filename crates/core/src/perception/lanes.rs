@@ -1078,17 +1078,12 @@ mod tests {
     #[test]
     fn the_default_shear_prior_halves_the_lean_of_a_slide() {
         // The same slide with the defaults (prior and deadband shrink the shear) and with the shear
-        // pinned at 0: the default lane centre is off by less than half as much.
+        // pinned at 0: the default lane centre is off by less than half as much (measured 6 cm vs 27 cm).
         let (lane, _, y_true) = drive_with_slide(0.1, &DetectorConfig::default());
         let pinned = DetectorConfig { shear_enabled: false, ..DetectorConfig::default() };
         let (lane_pinned, shear, _) = drive_with_slide(0.1, &pinned);
         assert_eq!(shear, 0.0);
         let (err, err_pinned) = ((lane.o + y_true).abs(), (lane_pinned.o + y_true).abs());
-        eprintln!(
-            "DBG {err} {err_pinned} {} {}",
-            lane.a.atan().to_degrees(),
-            lane_pinned.a.atan().to_degrees()
-        );
         assert!(2.0 * err < err_pinned, "{err} vs {err_pinned}");
     }
 
