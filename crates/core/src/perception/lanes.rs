@@ -21,7 +21,7 @@
 //! 4. **row end**: the canopy of the lane is declared ended where at least `end_empty_m` of visible ground
 //!    follows the last canopy bin; the end is kept in `odom` and cleared if canopy reappears (a gap).
 
-use nalgebra::{Matrix3, Matrix5, Vector3, Vector5};
+use nalgebra::{Matrix3, Matrix4, Matrix5, Vector3, Vector4, Vector5};
 
 use crate::geometry::{Pose2, wrap_angle};
 
@@ -642,13 +642,8 @@ impl Lanes {
                 self.local.push([x, cos * dy - sin * dx, p[2] / (1.0 + age * age), age_m]);
             }
         }
-        // The shear is an unknown only when enabled; otherwise it is pinned at 0 like a curvature that
-        // is not fitted.
-        let (shear_weight, shear_max) = if config.shear_enabled {
-            (config.shear_prior_m2, config.shear_max_per_m)
-        } else {
-            (PINNED, 0.0)
-        };
+        // The shear is an unknown only when enabled; otherwise it is fixed at 0.
+        let shear_max = if config.shear_enabled { config.shear_max_per_m } else { 0.0 };
         let curvature_weight = if config.fit_curvature { PRIOR_CURVATURE } else { PINNED };
         let b_prior = if config.fit_curvature { predicted.b } else { 0.0 };
         let mut lane = *predicted;
@@ -696,23 +691,24 @@ impl Lanes {
                 (PRIOR_SPACING, predicted.s),
                 (PRIOR_FREE, predicted.a),
                 (curvature_weight, b_prior),
-                (shear_weight, 0.0),
             ];
             for (i, (w, v)) in priors.into_iter().enumerate() {
                 n[(i, i)] += w;
                 r[i] += w * v;
             }
-            let mut p = n.cholesky()?.solve(&r);
-            let held = shrink(p[4], config.shear_deadband_per_m).clamp(-shear_max, shear_max);
-            if config.shear_enabled && held != p[4] {
+            let p = if config.shear_enabled {
+                let mut with_prior = n;
+                with_prior[(4, 4)] += config.shear_prior_m2;
+                let free = with_prior.cholesky()?.solve(&r);
                 // A small shear is the fit's own noise and bias and is held at none; a large one is held
                 // at its bound; the rest is refitted with the shear fixed.
-                n[(4, 4)] += PINNED;
-                r[4] += PINNED * held;
-                p = n.cholesky()?.solve(&r);
-            }
+                let held = shrink(free[4], config.shear_deadband_per_m).clamp(-shear_max, shear_max);
+                if held == free[4] { free } else { with_shear(&n, &r, held)? }
+            } else {
+                with_shear(&n, &r, 0.0)?
+            };
             lane = Lane { o: p[0], s: p[1], a: p[2], b: p[3], crests: predicted.crests };
-            shear = if config.shear_enabled { p[4] } else { 0.0 };
+            shear = p[4];
             if !lane.is_sane(config) || !shear.is_finite() {
                 return None;
             }
@@ -754,6 +750,15 @@ impl Lanes {
     fn end_ahead(&self, odom: &Pose2) -> Option<f64> {
         self.end.map(|[ex, ey, dir]| (ex - odom.x) * dir.cos() + (ey - odom.y) * dir.sin())
     }
+}
+
+/// Solves the normal equations `n·p = r` of `(o, s, a, b, k)` with the shear `k` fixed: its column
+/// moves to the right-hand side and the lane's four unknowns are solved alone.
+fn with_shear(n: &Matrix5<f64>, r: &Vector5<f64>, k: f64) -> Option<Vector5<f64>> {
+    let n4: Matrix4<f64> = n.fixed_view::<4, 4>(0, 0).into();
+    let r4: Vector4<f64> = r.fixed_rows::<4>(0) - n.fixed_view::<4, 1>(0, 4) * k;
+    let p = n4.cholesky()?.solve(&r4);
+    Some(Vector5::new(p[0], p[1], p[2], p[3], k))
 }
 
 /// Shrinks a fitted shear `k` towards 0 by the non-negative garrote `k − d²/k` (0 within `±d`): continuous,
