@@ -652,9 +652,11 @@ impl Lanes {
         let mut far = [0.0f64; 2];
         let crests = predicted.crests as i32;
         for pass in 0..2 {
-            // Normal matrix and right-hand side of φ = [1, q, x, x², d] (q = j + ½, d the age).
-            let mut n = Matrix5::<f64>::zeros();
-            let mut r = Vector5::<f64>::zeros();
+            // Sums of the symmetric normal matrix of φ = [1, q, x, x², d] (q = j + ½, d the age) and
+            // of φ·y.
+            let [mut sw, mut sq, mut sx, mut sxx, mut sqq, mut sqx, mut sqxx, mut sxxx, mut sx4] = [0.0; 9];
+            let [mut sy, mut sqy, mut sxy, mut sxxy] = [0.0; 4];
+            let [mut sd, mut sqd, mut sxd, mut sxxd, mut sdd, mut syd] = [0.0; 6];
             support = [0.0; 2];
             far = [0.0; 2];
             let last = pass == 1;
@@ -668,9 +670,27 @@ impl Lanes {
                 }
                 let robust = if pass == 0 { 1.0 } else { 1.0 / (1.0 + (d / CAUCHY_M).powi(2)) };
                 let w = weight * robust;
-                let phi = Vector5::new(1.0, j as f64 + 0.5, x, x * x, age_m);
-                n.ger(w, &phi, &phi, 1.0);
-                r.axpy(w * y, &phi, 1.0);
+                let (q, xx) = (j as f64 + 0.5, x * x);
+                sw += w;
+                sq += w * q;
+                sx += w * x;
+                sxx += w * xx;
+                sqq += w * q * q;
+                sqx += w * q * x;
+                sqxx += w * q * xx;
+                sxxx += w * xx * x;
+                sx4 += w * xx * xx;
+                sy += w * y;
+                sqy += w * q * y;
+                sxy += w * x * y;
+                sxxy += w * xx * y;
+                let wd = w * age_m;
+                sd += wd;
+                sqd += wd * q;
+                sxd += wd * x;
+                sxxd += wd * xx;
+                sdd += wd * age_m;
+                syd += wd * y;
                 // The first row left is crests 0..c of the canopy lattice, the first right -c..0.
                 if (-crests..crests).contains(&j) {
                     let k = usize::from(j < 0);
@@ -681,9 +701,17 @@ impl Lanes {
                     centroids.push([x, y]);
                 }
             }
-            if n[(0, 0)] < MIN_FIT_WEIGHT {
+            if sw < MIN_FIT_WEIGHT {
                 return None;
             }
+            let mut n = Matrix5::new(
+                sw, sq, sx, sxx, sd, //
+                sq, sqq, sqx, sqxx, sqd, //
+                sx, sqx, sxx, sxxx, sxd, //
+                sxx, sqxx, sxxx, sx4, sxxd, //
+                sd, sqd, sxd, sxxd, sdd,
+            );
+            let mut r = Vector5::new(sy, sqy, sxy, sxxy, syd);
             // Priors (information form): a lone row cannot tell the spacing, a short stretch cannot tell
             // the curvature; both then stay at their prediction. The shear is drawn towards none.
             let priors = [
