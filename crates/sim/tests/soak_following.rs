@@ -1,11 +1,12 @@
 //! Soak seeds whose robot ran over plants while following a lane (the 1000-run soak, issue 6), each
 //! kept as a regression named after what it guards. Each case is the seed's field, mission and faults
 //! as `soak_case` draws them, cut to its first lane (where the contacts began); it runs once with the
-//! guard under test off, where it must still run over plants (so the test can fail), and once with the
-//! defaults, where it must not. The guard of the slides is the detector's shear term
-//! (`detector.shear_enabled`, on by default: the lane fit models the map's unsensed sideways motion);
-//! the drift estimator (`drift.enabled`, off by default) is the second guard, kept for the seed where
-//! the shear term alone does not suffice.
+//! guard under test off, where it must still run over plants (so the test can fail), and once with it
+//! on, where it must not. The guard is the drift estimator (`drift.enabled`, off by default; see
+//! `croprow_core::odometry::DriftConfig::enabled`), or the detector's shear term (`detector.shear_enabled`,
+//! on by default: the lane fit models the map's unsensed sideways motion; off for the run that must
+//! still fail). Seed 530 is the exception: the defaults (the
+//! detector ignoring returns above the canopy, the EKF's bias check) now drive it clean without it.
 
 use croprow_sim::experiment::soak::{Case, Outcome, run_case, soak_case};
 
@@ -18,19 +19,42 @@ fn first_lane(seed: u64, summary: &str) -> Case {
     case
 }
 
-/// Runs `case` with the detector's shear term and the drift estimator on or off.
-fn run_with(case: &Case, shear: bool, drift: bool) -> Outcome {
+/// Runs `case` with the drift estimator on or off.
+fn run_with_drift(case: &Case, enabled: bool) -> Outcome {
     let mut case = case.clone();
-    case.navigator.detector.shear_enabled = shear;
-    case.navigator.drift.enabled = drift;
+    case.navigator.drift.enabled = enabled;
     run_case(&case).expect("runs")
 }
 
-/// Runs `case` without the shear term (it must run over plants) and with the defaults (it must not).
+/// Runs `case` with the detector's shear term off (it must run over plants) and with the defaults,
+/// where the shear term is on (it must not).
 fn safe_with_shear(case: &Case) -> Outcome {
-    let before = run_with(case, false, false);
+    let mut off = case.clone();
+    off.navigator.detector.shear_enabled = false;
+    let before = run_case(&off).expect("runs");
     assert!(before.crop_contacts > 0, "the case no longer provokes the failure: {before:?}");
     let outcome = run_case(case).expect("runs");
+    assert_eq!((outcome.crop_contacts, outcome.unsafe_commands), (0, 0), "{outcome:?}");
+    outcome
+}
+
+#[test]
+fn a_slide_on_young_soybean_is_taken_out_of_the_lane_fit() {
+    // Young soybean on a curved lane, slip with a sideways slide: the shear term keeps the lane where
+    // the rows are now.
+    safe_with_shear(&first_lane(152, "young soybean 10.7 m x 9 rows 0.70 m apart"));
+}
+
+#[test]
+fn a_late_slide_on_young_soybean_is_taken_out_of_the_lane_fit() {
+    safe_with_shear(&first_lane(187, "young soybean 12.6 m x 7 rows 0.71 m apart"));
+}
+
+/// Runs `case` without the drift estimator (it must run over plants) and with it (it must not).
+fn safe_with_drift_estimate(case: &Case) -> Outcome {
+    let before = run_with_drift(case, false);
+    assert!(before.crop_contacts > 0, "the case no longer provokes the failure: {before:?}");
+    let outcome = run_with_drift(case, true);
     assert_eq!((outcome.crop_contacts, outcome.unsafe_commands), (0, 0), "{outcome:?}");
     outcome
 }
@@ -40,32 +64,33 @@ fn a_sideways_slide_does_not_bend_the_rows_onto_the_tyres() {
     // Young soybean, slip patch 20 % with 0.07 m/s drift to the right from x 3.7 m: the detector's
     // map sheared, the centre line pivoted about 3 m ahead and the robot, believing itself centred,
     // ran over 37 plants.
-    safe_with_shear(&first_lane(100, "young soybean 14.5 m x 7 rows 0.75 m apart"));
+    safe_with_drift_estimate(&first_lane(100, "young soybean 14.5 m x 7 rows 0.75 m apart"));
 }
 
 #[test]
 fn a_strong_slide_among_tall_weeds_runs_over_far_fewer_plants() {
     // Young soybean, slip 35 % with 0.07 m/s drift to the right over 4.8 m and a patch of 0.47 m
-    // tall weeds: 72 plants run over (37 on this first lane). A known gap, guarded here against
-    // getting worse: at most a quarter is asserted, with the defaults and with the drift estimator.
+    // tall weeds: 72 plants run over (37 on this first lane). The windowed estimator learns too slowly for
+    // this one and still runs over 8 (at most a quarter is asserted; the previous one-baseline estimator ran over none, but it cost
+    // the recovery lane): a known gap, guarded here against getting worse.
     let case = first_lane(910, "young soybean 13.6 m x 9 rows 0.78 m apart");
-    let before = run_with(&case, false, false);
-    for drift in [false, true] {
-        let after = run_with(&case, true, drift);
-        assert!(
-            after.crop_contacts * 4 <= before.crop_contacts,
-            "drift {drift}: {} -> {}",
-            before.crop_contacts,
-            after.crop_contacts
-        );
-        assert_eq!(after.unsafe_commands, 0);
-    }
+    let mut off = case.clone();
+    off.navigator.detector.shear_enabled = false;
+    let before = run_with_drift(&off, false);
+    let after = run_with_drift(&case, true);
+    assert!(
+        after.crop_contacts * 4 <= before.crop_contacts,
+        "{} -> {}",
+        before.crop_contacts,
+        after.crop_contacts
+    );
+    assert_eq!(after.unsafe_commands, 0);
 }
 
 #[test]
 fn a_slide_on_a_curved_lane_does_not_bend_the_rows_onto_the_tyres() {
     // Young corn on a gently curved lane, slip 33 % with 0.07 m/s drift to the right: 43 plants.
-    safe_with_shear(&first_lane(549, "young corn 13.6 m x 7 rows 0.76 m apart"));
+    safe_with_drift_estimate(&first_lane(549, "young corn 13.6 m x 7 rows 0.76 m apart"));
 }
 
 #[test]
@@ -73,14 +98,15 @@ fn a_gyro_bias_step_does_not_lead_the_robot_onto_a_row() {
     // Grown corn on a curved lane with relief, an unlearned gyro bias step of 0.025 rad/s at x 7.7 m:
     // the map turned under the detector and 11 plants were run over. (Seed 180, the first case kept
     // here, is no longer acquired since the closed-canopy spacing search changed; see soak_acquire.)
+    // With the shear term on (the default) it is driven clean without the drift estimator.
     safe_with_shear(&first_lane(725, "grown corn 13.7 m x 9 rows 0.77 m apart, curve 0.68 m"));
 }
 
 #[test]
 fn a_slide_in_a_closed_soybean_canopy_does_not_bend_the_rows_onto_the_tyres() {
-    // Grown soybean (the closed canopy whose fit noise must not be taken for a slide), slip 31 % with
-    // 0.05 m/s drift to the left: 3 plants run over 4.6 m into the lane.
-    safe_with_shear(&first_lane(13, "grown soybean 14.6 m x 5 rows 0.78 m apart"));
+    // Grown soybean (the closed canopy whose fit noise the estimator must not take for a slide), slip
+    // 31 % with 0.05 m/s drift to the left: 3 plants run over 4.6 m into the lane.
+    safe_with_drift_estimate(&first_lane(13, "grown soybean 14.6 m x 5 rows 0.78 m apart"));
 }
 
 #[test]
@@ -91,7 +117,7 @@ fn a_gyro_bias_step_among_spurious_returns_does_not_lead_the_robot_onto_a_row() 
     // lane is driven clean (it now is even with the bias check off).
     let case = first_lane(530, "grown corn 11.9 m x 8 rows 0.72 m apart");
     for drift in [false, true] {
-        let o = run_with(&case, true, drift);
+        let o = run_with_drift(&case, drift);
         assert_eq!((o.crop_contacts, o.unsafe_commands), (0, 0), "drift {drift}: {o:?}");
     }
 }
