@@ -133,6 +133,20 @@ pub struct DetectorConfig {
     /// Levelling: fewest cells on the fitted surface for a scan's fit to count; fewer holds the previous
     /// estimate (none at all before the first fit). Default 12.
     pub level_min_cells: usize,
+    /// Default mode: fit a shear of the centroid map, the sideways motion the odometry did not sense
+    /// (a slide on wet soil) per metre driven, so that the lane describes the rows where they are now
+    /// rather than where old centroids put them. Default true.
+    pub shear_enabled: bool,
+    /// Default mode: prior weight drawing the shear towards none, in full-weight centroids times m² (a
+    /// centroid at 1 m age moved by the shear). Default 5 (measured, see docs/faults.md).
+    pub shear_prior_m2: f64,
+    /// Default mode: largest shear fitted, m per metre driven; beyond it the shear is held at the bound.
+    /// Default 0.2 (a 0.1 m/s slide at 0.5 m/s is 0.2).
+    pub shear_max_per_m: f64,
+    /// Default mode: a fitted shear within this of none is the fit's own noise and bias and is held at
+    /// none; beyond it the shear is shrunk by `d²/k` (continuous), m per metre driven. Default 0.025
+    /// (measured: on fields without a slide the fitted shear stays within ±0.021).
+    pub shear_deadband_per_m: f64,
 }
 
 impl Default for DetectorConfig {
@@ -174,6 +188,10 @@ impl Default for DetectorConfig {
             level_max_tilt_deg: 6.0,
             level_time_constant_s: 0.5,
             level_min_cells: 12,
+            shear_enabled: true,
+            shear_prior_m2: 5.0,
+            shear_max_per_m: 0.2,
+            shear_deadband_per_m: 0.025,
         }
     }
 }
@@ -233,6 +251,9 @@ impl DetectorConfig {
         check_range("detector.level_max_tilt_deg", self.level_max_tilt_deg, 0.0, 20.0)?;
         check_range("detector.level_time_constant_s", self.level_time_constant_s, 0.01, 60.0)?;
         check_count("detector.level_min_cells", self.level_min_cells, 3, 100_000)?;
+        check_range("detector.shear_prior_m2", self.shear_prior_m2, 1e-3, 1e9)?;
+        check_range("detector.shear_max_per_m", self.shear_max_per_m, 0.0, 1.0)?;
+        check_range("detector.shear_deadband_per_m", self.shear_deadband_per_m, 0.0, 1.0)?;
         Ok(())
     }
 }
