@@ -100,8 +100,11 @@ pub struct DetectorConfig {
     /// bin's canopy peaks: started at the mean of the bin's gated points, it moves to the mean of the
     /// points it covers until it settles, and a bin whose window then reaches past the gate is left out
     /// of the map (its canopy peaks outside the gate: tall weeds between the rows, the outer leaves of a
-    /// field's last row). 0 keeps every bin. Default 0.1 (measured on Table I and the soak's weed seeds:
-    /// 0.15 dropped too many bins of a grown soybean canopy, detection 1.54 -> 1.67 cm).
+    /// field's last row). 0 keeps every bin. Default 0 (off): 0.1 cleans the tall-weed fault lane and soak
+    /// seeds 50, 621, 77, 119, but on the soak's 84 weed runs it ran over more plants in all (195 -> 228:
+    /// weeds filling the start-up view), and beside the shear term it cost 20 m of grown soybean (1.37 ->
+    /// 1.70 cm following) and a gyro-step turn (soak seed 699); 0.15 dropped too many bins of a grown
+    /// soybean canopy (detection 1.54 -> 1.67 cm). See docs/faults.md.
     pub core_fraction: f64,
     /// Default mode: length of the along-row bins whose centroids enter the map, m. Default 0.25.
     pub map_bin_m: f64,
@@ -176,7 +179,7 @@ impl Default for DetectorConfig {
             spacing_max_m: 1.5,
             heading_search_deg: 20.0,
             gate_fraction: 0.3,
-            core_fraction: 0.1,
+            core_fraction: 0.0,
             map_bin_m: 0.25,
             map_min_points: 4,
             map_capacity: 4096,

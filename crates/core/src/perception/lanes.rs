@@ -1180,7 +1180,7 @@ mod tests {
     fn a_bin_whose_canopy_peaks_at_the_gate_edge_is_left_out() {
         // A sparse row and a heavy weed clump at the edge of its gate (soak seeds 919, 451): the
         // window walks to the clump and reaches past the gate, so the bin gives no centroid.
-        let cfg = DetectorConfig::default();
+        let cfg = DetectorConfig { core_fraction: 0.1, ..DetectorConfig::default() };
         assert!(first_left_centroids(&row_and_clump(6, 40), &cfg).is_empty());
     }
 
@@ -1188,7 +1188,7 @@ mod tests {
     fn a_row_with_a_smaller_clump_beside_it_keeps_its_bin() {
         // The row outweighs the clump: the window settles on the row and the bin stays (its centroid is
         // the gate's plain mean, as before).
-        let cfg = DetectorConfig::default();
+        let cfg = DetectorConfig { core_fraction: 0.1, ..DetectorConfig::default() };
         let c = first_left_centroids(&row_and_clump(40, 6), &cfg);
         assert_eq!(c.len(), 1, "{c:?}");
         assert!((c[0][1] - 0.375).abs() < 0.05, "{c:?}");
