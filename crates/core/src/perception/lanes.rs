@@ -561,7 +561,11 @@ impl Lanes {
     /// gate), and the visible (any) points near the lane.
     fn measure(&mut self, canopy: &[[f32; 3]], cropped: &[[f32; 3]], lane: &Lane, config: &DetectorConfig) {
         self.bins.iter_mut().for_each(|b| *b = Bin::default());
-        self.cells.iter_mut().for_each(|c| *c = Cell::default());
+        // The lateral profiles serve only the opt-in bin test (`core_fraction` > 0): skip them otherwise.
+        let profiles = config.core_fraction > 0.0;
+        if profiles {
+            self.cells.iter_mut().for_each(|c| *c = Cell::default());
+        }
         self.visible.iter_mut().for_each(|v| *v = 0);
         let gate = config.gate_fraction * lane.s;
         let inv_cell = CELLS as f64 / (2.0 * gate);
@@ -581,6 +585,9 @@ impl Lanes {
                 b.w += w;
                 b.sx += w * x;
                 b.sy += w * y;
+            }
+            if !profiles {
+                continue;
             }
             // |d| <= gate, so the cell is in 0..=CELLS; the last edge joins the last cell.
             let k = (((d + gate) * inv_cell) as usize).min(CELLS - 1);
