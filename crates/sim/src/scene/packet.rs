@@ -114,12 +114,11 @@ impl Lanes {
     /// Recomputes `settled`.
     #[inline(always)]
     fn settle(&mut self) {
-        let mut settled = f32::INFINITY;
+        let mut a = [0f32; LANES];
         for k in 0..LANES {
-            let a = if self.lo[k] < f32::INFINITY { self.best[k] * self.along[k] } else { f32::INFINITY };
-            settled = if a < settled { a } else { settled };
+            a[k] = if self.lo[k] < f32::INFINITY { self.best[k] * self.along[k] } else { f32::INFINITY };
         }
-        self.settled = settled;
+        self.settled = min_of(a);
         self.stale = false;
     }
 
@@ -134,10 +133,9 @@ impl Lanes {
         if dist - SLACK_M <= self.settled {
             return false;
         }
+        let limit = dist - SLACK_M;
         for k in 0..LANES {
-            if self.best[k] * self.along[k] < dist - SLACK_M {
-                self.lo[k] = f32::INFINITY;
-            }
+            self.lo[k] = if self.best[k] * self.along[k] < limit { f32::INFINITY } else { self.lo[k] };
         }
         self.settle();
         if HALVE && self.width == LANES && (0..LANES).filter(|&k| self.searching(k)).count() <= LANES / 2 {
@@ -188,9 +186,7 @@ impl Lanes {
             st[k] = if on { self.descent[k] } else { f32::INFINITY };
             fl[k] = if on { self.descent[k] } else { f32::NEG_INFINITY };
         }
-        let min = |a: [f32; LANES]| a.iter().fold(f32::INFINITY, |m, &v| if v < m { v } else { m });
-        let max = |a: [f32; LANES]| a.iter().fold(f32::NEG_INFINITY, |m, &v| if v > m { v } else { m });
-        let b = (min(l), max(r), min(st), max(fl));
+        let b = (min_of(l), max_of(r), min_of(st), max_of(fl));
         (b.0 <= b.1).then_some(b)
     }
 
@@ -241,6 +237,35 @@ impl Lanes {
         }
         self.stale |= any != 0;
     }
+}
+
+/// The least of the lanes (none is NaN). Halving, not a running minimum: each step is one packed
+/// minimum, where a running minimum stays a chain of scalar compares (the compiler may not reorder
+/// it). The minimum of a set is one value whatever the order, so the result is the same bits, but
+/// for the sign of a zero, which only ever meets comparisons and sums with a non-zero term.
+#[inline(always)]
+fn min_of(mut a: [f32; LANES]) -> f32 {
+    let mut half = LANES / 2;
+    while half > 0 {
+        for k in 0..half {
+            a[k] = if a[k + half] < a[k] { a[k + half] } else { a[k] };
+        }
+        half /= 2;
+    }
+    a[0]
+}
+
+/// The greatest of the lanes (none is NaN), as [`min_of`].
+#[inline(always)]
+fn max_of(mut a: [f32; LANES]) -> f32 {
+    let mut half = LANES / 2;
+    while half > 0 {
+        for k in 0..half {
+            a[k] = if a[k + half] > a[k] { a[k + half] } else { a[k] };
+        }
+        half /= 2;
+    }
+    a[0]
 }
 
 /// How a ray enters a packet.
