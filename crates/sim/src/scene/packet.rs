@@ -524,18 +524,22 @@ impl Scene {
             }
             // Across the strip the wedge lies between its boundary rays at the strip's edges.
             let (left, right, steep, flat) = spread;
-            let ends = [d_near * left, d_far * left, d_near * right, d_far * right];
-            let (lo, hi) =
-                ends.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(l, h), &v| (l.min(v), h.max(v)));
+            // `left ≤ right` and both distances are ≥ 0: the leftmost end is on the left ray, the
+            // rightmost on the right one (rounding is monotonic).
+            let (l0, l1, r0, r1) = (d_near * left, d_far * left, d_near * right, d_far * right);
+            let (lo, hi) = (if l1 < l0 { l1 } else { l0 }, if r1 > r0 { r1 } else { r0 });
             let t0 = index(o[b] + lo - SLACK_M, b).max(0);
             let t1 = index(o[b] + hi + SLACK_M, b).min(n[b] - 1);
             // The rays descend: across the strip they lie between their heights at its edges.
             let z = (o[2] + steep * d_far, o[2] + flat * d_near);
             // A primitive can meet a ray in this strip only if it reaches into the wedge's width here.
             let across = (b, o[b] + lo - SLACK_M, o[b] + hi + SLACK_M);
-            for t in t0..=t1 {
-                let (i, j) = if a == 0 { (s, t) } else { (t, s) };
-                self.visit(o, lanes, (j * self.nx + i) as usize, z, across);
+            // Cells across the strip: a column of the grid (x strips) or a run of a row (y strips).
+            let (first, stride) = if a == 0 { (t0 * self.nx + s, self.nx) } else { (s * self.nx + t0, 1) };
+            let mut c = first;
+            for _ in t0..=t1 {
+                self.visit(o, lanes, c as usize, z, across);
+                c += stride;
             }
             s += step;
         }
