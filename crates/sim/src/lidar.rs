@@ -147,8 +147,9 @@ pub struct Lidar {
     columns: usize,
     mount: Isometry3<f64>,
     rng: ChaCha8Rng,
-    /// Hits of the columns being cast, column-major like `dirs` (allocated once: one packet's worth).
-    hits: Vec<Option<(f32, Class)>>,
+    /// Hits of the columns being cast, one packet per beam (allocated once): the packets write their
+    /// answers in place, and the returns are then read column by column.
+    hits: Vec<[Option<(f32, Class)>; PACKET_LANES]>,
 }
 
 impl Lidar {
@@ -179,7 +180,7 @@ impl Lidar {
             columns,
             mount: config.mount.isometry(),
             rng: ChaCha8Rng::seed_from_u64(seed),
-            hits: vec![None; PACKET_LANES * beams],
+            hits: vec![[None; PACKET_LANES]; beams],
         })
     }
 
@@ -231,22 +232,34 @@ impl Lidar {
         let Self { dirs, hits, rng, .. } = self;
         let rays = dirs.get(first * beams..last * beams).unwrap_or(&[]);
         for columns in rays.chunks(PACKET_LANES * beams) {
-            for beam in 0..beams {
+            let n = (columns.len() / beams.max(1)).min(PACKET_LANES);
+            for (beam, found) in hits.iter_mut().enumerate() {
+                // The beam's rays of these columns, rotated into the field frame as one packed array
+                // per axis (per ray the same products and sums, in the same order, as `rot · d`).
+                let mut sensor = [[0f32; PACKET_LANES]; 3];
+                for k in 0..n {
+                    if let Some(ds) = columns.get(k * beams + beam) {
+                        (sensor[0][k], sensor[1][k], sensor[2][k]) = (ds[0], ds[1], ds[2]);
+                    }
+                }
+                let field_frame = rot.map(|row| {
+                    let mut axis = [0f32; PACKET_LANES];
+                    for k in 0..PACKET_LANES {
+                        axis[k] = row[0] * sensor[0][k] + row[1] * sensor[1][k] + row[2] * sensor[2][k];
+                    }
+                    axis
+                });
                 let mut world = [[0f32; 3]; PACKET_LANES];
-                let mut n = 0;
-                for (d, ds) in world.iter_mut().zip(columns.iter().skip(beam).step_by(beams)) {
-                    *d = rotate(&rot, *ds);
-                    n += 1;
+                for (k, d) in world.iter_mut().enumerate() {
+                    *d = [field_frame[0][k], field_frame[1][k], field_frame[2][k]];
                 }
-                let mut found = [None; PACKET_LANES];
                 scene.cast_packet(origin, &world[..n], returns.max_r, &mut found[..n]);
-                for (slot, hit) in hits.iter_mut().skip(beam).step_by(beams).zip(&found[..n]) {
-                    *slot = *hit;
-                }
             }
-            for (hit, ds) in hits.iter().zip(columns) {
-                if let Some(hit) = *hit {
-                    returns.emit(rng, hit, *ds, out);
+            for (k, column) in columns.chunks(beams.max(1)).enumerate() {
+                for (found, ds) in hits.iter().zip(column) {
+                    if let Some(&Some(hit)) = found.get(k) {
+                        returns.emit(rng, hit, *ds, out);
+                    }
                 }
             }
         }
@@ -302,12 +315,6 @@ fn sensor_in_field(sensor: &Isometry3<f64>) -> ([f32; 3], [[f32; 3]; 3]) {
     ];
     let t = sensor.translation.vector;
     ([t.x as f32, t.y as f32, t.z as f32], rot)
-}
-
-/// `rot · v`.
-#[inline]
-fn rotate(rot: &[[f32; 3]; 3], v: [f32; 3]) -> [f32; 3] {
-    rot.map(|row| row[0] * v[0] + row[1] * v[1] + row[2] * v[2])
 }
 
 #[cfg(test)]
