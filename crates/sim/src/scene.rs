@@ -283,9 +283,10 @@ struct CellInfo {
 #[derive(Debug, Clone)]
 pub(crate) struct Scene {
     prims: Vec<Prim>,
-    /// Per primitive, its horizontal bounds `[x_min, y_min, x_max, y_max]` (field frame, m): beam
-    /// packets skip a primitive that lies beside their wedge without loading it.
-    footprints: Vec<[f32; 4]>,
+    /// Per primitive, its horizontal bounds, one array per axis: `[x_min, x_max]`, then `[y_min,
+    /// y_max]` (field frame, m). Beam packets skip a primitive that lies beside their wedge without
+    /// loading it, reading only the axis across their walk (8 bytes a primitive).
+    footprints: [Vec<[f32; 2]>; 2],
     relief: Relief,
     /// Upper bound of the relief's slope |∇h| (numerical, with margin), for sphere tracing.
     relief_slope: f64,
@@ -420,7 +421,7 @@ impl Scene {
                 }
             }
         }
-        let footprints = prims.iter().map(|p| p.bounds()).map(|b| [b[0], b[1], b[3], b[4]]).collect();
+        let footprints = [0, 1].map(|k| prims.iter().map(|p| p.bounds()).map(|b| [b[k], b[k + 3]]).collect());
         Self {
             prims,
             footprints,

@@ -581,6 +581,7 @@ impl Scene {
         }
         let Some(info) = self.cells.get(c) else { return };
         let (refs, prims) = (self.refs.as_slice(), self.prims.as_slice());
+        let footprints = if b == 0 { self.footprints[0].as_slice() } else { self.footprints[1].as_slice() };
         for r in refs.get(info.start as usize..info.end as usize).unwrap_or(&[]) {
             if r.z_max < z_low {
                 break;
@@ -588,8 +589,8 @@ impl Scene {
             if r.z_min > z_high {
                 continue;
             }
-            match self.footprints.get(r.prim as usize) {
-                Some(f) if f[b] <= hi && f[b + 2] >= lo => {}
+            match footprints.get(r.prim as usize) {
+                Some(f) if f[0] <= hi && f[1] >= lo => {}
                 _ => continue,
             }
             let slot = (r.prim as usize) % SEEN;
