@@ -242,13 +242,12 @@ impl Lidar {
                         (sensor[0][k], sensor[1][k], sensor[2][k]) = (ds[0], ds[1], ds[2]);
                     }
                 }
-                let field_frame = rot.map(|row| {
-                    let mut axis = [0f32; PACKET_LANES];
+                let mut field_frame = [[0f32; PACKET_LANES]; 3];
+                for (axis, row) in field_frame.iter_mut().zip(&rot) {
                     for k in 0..PACKET_LANES {
                         axis[k] = row[0] * sensor[0][k] + row[1] * sensor[1][k] + row[2] * sensor[2][k];
                     }
-                    axis
-                });
+                }
                 let mut world = [[0f32; 3]; PACKET_LANES];
                 for (k, d) in world.iter_mut().enumerate() {
                     *d = [field_frame[0][k], field_frame[1][k], field_frame[2][k]];
