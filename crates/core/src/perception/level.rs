@@ -157,8 +157,8 @@ pub(crate) struct Level {
     half_width_m: f64,
     /// Cell heights `(x, y, z)` relative to the sensor origin (x, y) and `base_link` (z), m.
     samples: Vec<[f64; 3]>,
-    /// The scan's finite cropped points relative to the sensor origin (x, y) and `base_link` (z), m,
-    /// converted once for the binning and every refit pass.
+    /// The scan's finite cropped points relative to the sensor origin (x, y) and `base_link` (z), m:
+    /// converted once for the four refit passes, and only when a fit gets that far.
     relative: Vec<[f64; 3]>,
     residuals: Vec<f64>,
     rng: Rng,
@@ -219,7 +219,7 @@ impl Level {
         }
         self.fill_samples(cropped, origin);
         let bound = config.level_max_tilt_deg.to_radians();
-        match self.fit(config.level_min_cells, bound) {
+        match self.fit(cropped, origin, config.level_min_cells, bound) {
             Some((roll, pitch)) => {
                 let raw = (roll.clamp(-bound, bound), pitch.clamp(-bound, bound));
                 let next = match (self.estimate, self.last_fit_s) {
@@ -244,27 +244,25 @@ impl Level {
         Some(Rotation3::from_euler_angles(roll, pitch, 0.0).transpose())
     }
 
-    /// Keeps the finite cropped points relative to the sensor, bins them around it and keeps each
-    /// full cell's height.
+    /// Bins the cropped points around the sensor and keeps each full cell's height.
     fn fill_samples(&mut self, cropped: &[[f32; 3]], origin: [f32; 3]) {
         self.cells.iter_mut().for_each(|c| *c = Cell::default());
-        self.relative.clear();
         let inv = 1.0 / self.cell_m;
         for p in cropped {
             if !p.iter().all(|v| v.is_finite()) {
                 continue;
             }
             let dx = (p[0] - origin[0]) as f64;
-            let dy_m = (p[1] - origin[1]) as f64;
-            self.relative.push([dx, dy_m, p[2] as f64]);
-            let dy = dy_m + self.half_width_m;
+            let dy = (p[1] - origin[1]) as f64 + self.half_width_m;
             if dx < 0.0 || dy < 0.0 {
                 continue;
             }
-            let (ix, iy) = ((dx * inv) as usize, (dy * inv) as usize);
-            if ix < self.nx
-                && iy < self.ny
-                && let Some(c) = self.cells.get_mut(iy * self.nx + ix)
+            // `as i64` is one instruction where `as usize` is a dozen (x86 has no unsigned 64-bit
+            // conversion); both are ≥ 0 here and saturate far beyond the grid, so the same cells.
+            let (ix, iy) = ((dx * inv) as i64, (dy * inv) as i64);
+            if ix < self.nx as i64
+                && iy < self.ny as i64
+                && let Some(c) = self.cells.get_mut(iy as usize * self.nx + ix as usize)
             {
                 c.insert([p[0] - origin[0], p[1] - origin[1], p[2]]);
             }
@@ -278,7 +276,13 @@ impl Level {
     }
 
     /// The robust plane of the cell heights as (roll, pitch), rad, or `None` when refused.
-    fn fit(&mut self, min_cells: usize, bound_rad: f64) -> Option<(f64, f64)> {
+    fn fit(
+        &mut self,
+        cropped: &[[f32; 3]],
+        origin: [f32; 3],
+        min_cells: usize,
+        bound_rad: f64,
+    ) -> Option<(f64, f64)> {
         let n = self.samples.len();
         if n < min_cells.max(3) {
             return None;
@@ -322,6 +326,9 @@ impl Level {
         // field. The returns themselves scatter evenly about the surface: refit them.
         // Every return, not a subsample: refitting an even subsample of 2048 returns in 2 passes moved
         // Table I's grown-soybean following from 1.07 to 1.38 cm.
+        let relative = |p: &[f32; 3]| [(p[0] - origin[0]) as f64, (p[1] - origin[1]) as f64, p[2] as f64];
+        self.relative.clear();
+        self.relative.extend(cropped.iter().filter(|p| p.iter().all(|v| v.is_finite())).map(relative));
         for _ in 0..REFINE_PASSES {
             plane = refine(&plane, self.relative.iter().copied())?;
         }
