@@ -237,10 +237,10 @@ impl Lidar {
                 // The beam's rays of these columns, rotated into the field frame as one packed array
                 // per axis (per ray the same products and sums, in the same order, as `rot · d`).
                 let mut sensor = [[0f32; PACKET_LANES]; 3];
-                for k in 0..n {
-                    if let Some(ds) = columns.get(k * beams + beam) {
-                        (sensor[0][k], sensor[1][k], sensor[2][k]) = (ds[0], ds[1], ds[2]);
-                    }
+                let [xs, ys, zs] = &mut sensor;
+                let beam_rays = columns.iter().skip(beam).step_by(beams.max(1));
+                for (((x, y), z), ds) in xs.iter_mut().zip(ys.iter_mut()).zip(zs.iter_mut()).zip(beam_rays) {
+                    (*x, *y, *z) = (ds[0], ds[1], ds[2]);
                 }
                 let mut field_frame = [[0f32; PACKET_LANES]; 3];
                 for (axis, row) in field_frame.iter_mut().zip(&rot) {

@@ -114,10 +114,9 @@ impl Lanes {
     /// Recomputes `settled`.
     #[inline(always)]
     fn settle(&mut self) {
-        let mut a = [0f32; LANES];
-        for k in 0..LANES {
-            a[k] = if self.lo[k] < f32::INFINITY { self.best[k] * self.along[k] } else { f32::INFINITY };
-        }
+        let a = std::array::from_fn(|k| {
+            if self.lo[k] < f32::INFINITY { self.best[k] * self.along[k] } else { f32::INFINITY }
+        });
         self.settled = min_of(a);
         self.stale = false;
     }
