@@ -102,6 +102,43 @@
 //! The 1 ms target needs 5x fewer instructions (~4M a revolution, ~300 per ray that hits); the
 //! cost is spread over the walk (strips, cells, ~70 cell references a packet), 8-lane tests and the
 //! rays left to `Scene::cast_from` past the reach (1.9k a revolution, ~800 instructions each).
+//!
+//! The whole closed loop, then the walk's bookkeeping (branch `simperf5`). Where a 0.1 s step of
+//! `croprow bench`'s loop goes (callgrind on `examples/loop_cost.rs 4`, grown corn, 40 scans;
+//! instructions per step, before -> after): in all 22.7M -> 19.7M; the LiDAR's casting 18.93M ->
+//! 16.18M (82 %); the detector 3.41M -> 3.19M (preprocessing 2.10M -> 1.88M, of which levelling
+//! 0.86M -> 0.73M; lanes 1.31M); lane switching and MPC 0.22M; the EKF 0.05M; the rest of
+//! `World::step` 0.04M. Changes, every one leaving the scans bit for bit (scan hashes of all five
+//! scenarios) and 20 m closed-loop runs byte for byte (`croprow simulate`, grown corn and young
+//! soybean: trajectory, detections, metrics):
+//! - stalks and weed clumps are tested out of line (`Lanes::each`): inlined, their unrolled 8 lanes
+//!   had the compiler hoist the 24 direction components out of the cell loop and copy them on the
+//!   stack at every strip (~80 instructions a strip, 14k strips a grown-corn revolution): -9 %;
+//! - primitive footprints stored per axis, a packet reading the one across its walk: -2.7 %;
+//! - the lanes' minima and maxima by halving (packed), the stopping rule as a select, the strip's
+//!   ends from its boundary rays, its cells by stride: -1.4 %;
+//! - the LiDAR: packets write their hits in place per beam, the rays are rotated as packed arrays per
+//!   axis in plain loops (an array `map`'s closure was not inlined): -2 %.
+//!
+//! Instructions per revolution (callgrind as above, 3 revolutions) before -> after: young corn
+//! 16.15M -> 13.91M, grown corn 18.82M -> 16.09M, young soybean 17.89M -> 15.51M, grown soybean
+//! 21.35M -> 18.41M, curved corn 16.68M -> 14.44M (-13 to -15 %). CPU time, measured at load average
+//! 11-12 on the 2 cores (other builds), so only indicative: per revolution (`examples/raycast_cost.rs`,
+//! 30 revolutions, 5 runs alternating the binaries, median) grown corn 3.19 -> 2.82 ms, young corn
+//! 2.33 -> 2.10 ms, young soybean 2.69 -> 2.58 ms; the world alone (`examples/world_cost.rs`, 8 s, 5
+//! runs, median real-time factor) grown corn 34.5 -> 38.8, young corn 46.3 -> 51.1; `croprow bench
+//! --json` `sim_realtime_factor` (wall time, 5 runs alternating, median) 15.1 -> 16.0.
+//!
+//! CPU time falls less than instructions because a third of the packet code's time (perf, cpu-clock
+//! samples, grown corn) waits on three loads: a cell's first primitive reference, the primitive's
+//! footprint and the primitive itself. What a grown-corn revolution still costs: 26k 8-lane patch
+//! tests at ~120 instructions with the register spills round them (3.1M), ~130k cell references
+//! scanned (2.1M), 14k strips (1.1M), 2k rays past the reach (1.6M), the LiDAR's own work (rotations,
+//! noise draws, points: 2.7M).
+//! Tried and dropped: primitives aligned to a 64-byte cache line (56 bytes straddle two lines five
+//! times in eight; no CPU time gain within the noise, 14 % more memory); settling rising rays before
+//! the square root in `packet_ray` (+0.2 %); RANSAC scoring that stops once a hypothesis cannot win
+//! (levelling +1 %: grown corn's hypotheses are all poor, so it never stops early).
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use croprow_core::Pose2;
