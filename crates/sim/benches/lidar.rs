@@ -108,7 +108,12 @@
 //! instructions per step, before -> after): in all 22.7M -> 19.7M; the LiDAR's casting 18.93M ->
 //! 16.18M (82 %); the detector 3.41M -> 3.19M (preprocessing 2.10M -> 1.88M, of which levelling
 //! 0.86M -> 0.73M; lanes 1.31M); lane switching and MPC 0.22M; the EKF 0.05M; the rest of
-//! `World::step` 0.04M. Changes, every one leaving the scans bit for bit (scan hashes of all five
+//! `World::step` 0.04M. On young soybean, where levelling fits every scan and refits every return,
+//! preprocessing went from 2.84M to 2.46M a scan (levelling ~1.90M -> 1.52M: the returns are made
+//! sensor-relative in f64 once for the four refit passes, and only when a fit gets that far; cells
+//! are indexed through `i64`, not `usize`). The criterion bench `detector` could not resolve it at
+//! load average 11 (default `Preprocess` -9 %, p = 0.01, but unchanged stages moved ±20 %). Changes,
+//! every one leaving the scans bit for bit (scan hashes of all five
 //! scenarios) and 20 m closed-loop runs byte for byte (`croprow simulate`, grown corn and young
 //! soybean: trajectory, detections, metrics):
 //! - stalks and weed clumps are tested out of line (`Lanes::each`): inlined, their unrolled 8 lanes
