@@ -166,8 +166,13 @@ impl Navigator {
     /// Validates the configuration and builds every stage (all buffers are allocated here).
     pub fn new(cfg: NavigatorConfig) -> Result<Self, ConfigError> {
         cfg.validate()?;
+        let mut detector = cfg.detector.clone();
+        if detector.planted_spacing_m == 0.0 {
+            // The lane switcher's planted spacing tells the detector which lattice is the field's.
+            detector.planted_spacing_m = cfg.lane_switch.row_spacing_m;
+        }
         Ok(Self {
-            detector: RowDetector::new(cfg.detector.clone())?,
+            detector: RowDetector::new(detector)?,
             switcher: LaneSwitcher::new(cfg.lane_switch.clone(), cfg.reference.clone())?,
             mpc: Mpc::new(cfg.mpc.clone())?,
             drift: Drift::new(cfg.drift.clone())?,

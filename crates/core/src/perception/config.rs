@@ -150,6 +150,19 @@ pub struct DetectorConfig {
     /// none; beyond it the shear is shrunk by `d²/k` (continuous), m per metre driven. Default 0.025
     /// (measured: on fields without a slide the fitted shear stays within ±0.021).
     pub shear_deadband_per_m: f64,
+    /// Default mode: the field's planted row spacing, m, when known; 0 when not (the spacing is then
+    /// learned from the canopy alone). A field parameter, not a crop's: the planter sets it. When known,
+    /// the start-up search takes the canopy period (one or two crests per row) nearest to it, and a lane
+    /// whose spacing is more than `planted_spacing_tolerance` off it is no lane (searched again). The
+    /// [`Navigator`](crate::navigator::Navigator) sets it from `lane_switch.row_spacing_m` when 0.
+    /// Default 0 (soak seeds 439, 982, 75: a grown canopy's ground read as repeating every second row
+    /// gave a doubled spacing, and the fit then wandered to 0.85-0.91 m on 0.71-0.74 m rows, within the
+    /// lane switcher's 25 %).
+    pub planted_spacing_m: f64,
+    /// Default mode: largest relative difference between a lane's spacing and `planted_spacing_m` for the
+    /// lane to be believed (unused while the planted spacing is unknown). Default 0.12 (measured: see
+    /// docs/faults.md, Start-up).
+    pub planted_spacing_tolerance: f64,
 }
 
 impl Default for DetectorConfig {
@@ -195,6 +208,8 @@ impl Default for DetectorConfig {
             shear_prior_m2: 5.0,
             shear_max_per_m: 0.2,
             shear_deadband_per_m: 0.025,
+            planted_spacing_m: 0.0,
+            planted_spacing_tolerance: 0.12,
         }
     }
 }
@@ -257,6 +272,15 @@ impl DetectorConfig {
         check_range("detector.shear_prior_m2", self.shear_prior_m2, 1e-3, 1e9)?;
         check_range("detector.shear_max_per_m", self.shear_max_per_m, 0.0, 1.0)?;
         check_range("detector.shear_deadband_per_m", self.shear_deadband_per_m, 0.0, 1.0)?;
+        if self.planted_spacing_m != 0.0 {
+            check_range(
+                "detector.planted_spacing_m",
+                self.planted_spacing_m,
+                self.spacing_min_m,
+                self.spacing_max_m,
+            )?;
+        }
+        check_range("detector.planted_spacing_tolerance", self.planted_spacing_tolerance, 0.01, 1.0)?;
         Ok(())
     }
 }

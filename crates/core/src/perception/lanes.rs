@@ -154,6 +154,14 @@ impl Lane {
             && self.b.abs() < 0.5
             && self.s >= config.spacing_min_m
             && self.spacing_m() <= config.spacing_max_m
+            && self.near_planted(config)
+    }
+
+    /// True unless the planted spacing is known and this lane's spacing is more than
+    /// `planted_spacing_tolerance` off it: rows at another spacing are not this field's.
+    fn near_planted(&self, config: &DetectorConfig) -> bool {
+        let planted = config.planted_spacing_m;
+        planted <= 0.0 || (self.spacing_m() - planted).abs() <= config.planted_spacing_tolerance * planted
     }
 
     /// The lane seen from `to`, given in the `base_link` of `from` (both poses in `odom`): three points of
@@ -438,6 +446,7 @@ impl Lanes {
             .then(|| envelope_spacing(&self.envelope, &self.filled, config))
             .flatten();
         let lane = match (density, crest) {
+            _ if config.planted_spacing_m > 0.0 => self.nearest_planted(a, density, crest, config)?,
             (Some(s), Some(e)) if (e - s).abs() > PERIODS_AGREE * s => {
                 // The density and the envelope disagree: the envelope's crests are the plants' tops,
                 // one per row, wherever the leaves spread (see the method's docs).
@@ -467,6 +476,35 @@ impl Lanes {
         // lattice half a spacing off the crop's (soak seed 451: the lane centre was put on a row).
         let centred = lane.o.abs() <= MAX_START_OFFSET * lane.spacing_m();
         (centred && lane.is_sane(config)).then_some(lane)
+    }
+
+    /// The start-up lane when the planted spacing is known: of the canopy density's period with one or
+    /// two crests per row and the envelope's period, the one whose row spacing is nearest the planted
+    /// one. The ground's period is not consulted: it only breaks the one-or-two-crests tie, which the
+    /// planted spacing breaks for sure (in grown corn the ground, seen mostly in the robot's own
+    /// inter-row, read as repeating every second row and doubled the spacing: soak seeds 439, 75).
+    fn nearest_planted(
+        &self,
+        a: f64,
+        density: Option<f64>,
+        crest: Option<f64>,
+        config: &DetectorConfig,
+    ) -> Option<Lane> {
+        let from_density = density.into_iter().flat_map(|s| {
+            // The lane centre lies between two canopy crests; of those gaps the one nearest the robot.
+            let o =
+                Lane { o: circular_mean(&self.hist, s) + 0.5 * s, a, b: 0.0, s, crests: 1.0 }.normalised().o;
+            [1.0, 2.0].map(|crests| Lane { o, a, b: 0.0, s, crests })
+        });
+        let from_envelope = crest.map(|e| Lane {
+            o: circular_mean(&self.envelope, e) + 0.5 * e,
+            a,
+            b: 0.0,
+            s: e,
+            crests: 1.0,
+        });
+        let off = |l: &Lane| (l.spacing_m() - config.planted_spacing_m).abs();
+        from_density.chain(from_envelope).min_by(|l, m| off(l).total_cmp(&off(m)))
     }
 
     /// The canopy's upper envelope across the rows along heading slope `a`: per lateral bin, the mean
