@@ -428,6 +428,17 @@ mod tests {
     }
 
     #[test]
+    fn the_detector_learns_the_planted_spacing_from_the_lane_switcher() {
+        // Unset (0): taken from `lane_switch.row_spacing_m`; set: kept.
+        let mut cfg = NavigatorConfig::default();
+        cfg.lane_switch.row_spacing_m = 0.7;
+        let nav = Navigator::new(cfg.clone()).unwrap();
+        assert_eq!(nav.detector().config().planted_spacing_m, 0.7);
+        cfg.detector.planted_spacing_m = 0.9;
+        assert_eq!(Navigator::new(cfg).unwrap().detector().config().planted_spacing_m, 0.9);
+    }
+
+    #[test]
     fn an_absurd_stamp_tolerance_is_refused_by_name() {
         let cfg = NavigatorConfig {
             input: InputConfig { scan_stamp_tolerance_s: -1.0 },
