@@ -462,7 +462,9 @@ impl Lanes {
     /// spacing is the ground's period. The lane centre is the gap between canopy crests nearest the
     /// robot either way: the search assumes the robot starts within a quarter spacing of its lane
     /// centre (between its two rows), and finds nothing when the nearest gap is more than
-    /// [`MAX_START_OFFSET`] spacings away or the sharpest heading is at the edge of the search.
+    /// [`MAX_START_OFFSET`] spacings away or the sharpest heading is at the edge of the search. When the
+    /// planted spacing is known, it settles the tie instead of the ground (see
+    /// [`Lanes::nearest_planted`]), and a lattice too far from it is no lane.
     fn search(&mut self, canopy: &[[f32; 3]], cropped: &[[f32; 3]], config: &DetectorConfig) -> Option<Lane> {
         if canopy.len() < MIN_SEARCH_POINTS {
             return None;
