@@ -166,8 +166,13 @@ impl Navigator {
     /// Validates the configuration and builds every stage (all buffers are allocated here).
     pub fn new(cfg: NavigatorConfig) -> Result<Self, ConfigError> {
         cfg.validate()?;
+        let mut detector = cfg.detector.clone();
+        if detector.planted_spacing_m == 0.0 {
+            // The lane switcher's planted spacing tells the detector which lattice is the field's.
+            detector.planted_spacing_m = cfg.lane_switch.row_spacing_m;
+        }
         Ok(Self {
-            detector: RowDetector::new(cfg.detector.clone())?,
+            detector: RowDetector::new(detector)?,
             switcher: LaneSwitcher::new(cfg.lane_switch.clone(), cfg.reference.clone())?,
             mpc: Mpc::new(cfg.mpc.clone())?,
             drift: Drift::new(cfg.drift.clone())?,
@@ -420,6 +425,17 @@ mod tests {
             assert_eq!((d.status, d.left, out.input_fault), (RowStatus::InvalidInput, None, None));
             assert_eq!(out.cmd, Twist2::ZERO);
         }
+    }
+
+    #[test]
+    fn the_detector_learns_the_planted_spacing_from_the_lane_switcher() {
+        // Unset (0): taken from `lane_switch.row_spacing_m`; set: kept.
+        let mut cfg = NavigatorConfig::default();
+        cfg.lane_switch.row_spacing_m = 0.7;
+        let nav = Navigator::new(cfg.clone()).unwrap();
+        assert_eq!(nav.detector().config().planted_spacing_m, 0.7);
+        cfg.detector.planted_spacing_m = 0.9;
+        assert_eq!(Navigator::new(cfg).unwrap().detector().config().planted_spacing_m, 0.9);
     }
 
     #[test]

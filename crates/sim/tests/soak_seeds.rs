@@ -44,3 +44,18 @@ fn half_period_lock_after_a_turn_is_not_entered() {
     let outcome = safe_run(2, "grown soybean 11.7 m", false);
     assert!(outcome.lanes_completed >= 2, "the first two lanes are still driven: {outcome:?}");
 }
+
+#[test]
+fn a_lane_entry_in_grown_corn_does_not_follow_a_doubled_spacing() {
+    // Fault-free grown corn 0.74 m apart: after the second turn the search took two crests per row
+    // (1.44 m) and the fit settled at 0.91 m, 6° off the rows; the robot followed it across a row
+    // (52 plants). With the planted spacing the mission is done clean.
+    let case = soak_case(75);
+    assert!(
+        case.scenario.summary.starts_with("grown corn 11.8 m x 9 rows 0.74 m"),
+        "{}",
+        case.scenario.summary
+    );
+    let o = run_case(&case).expect("runs");
+    assert_eq!((o.crop_contacts, o.unsafe_commands, o.lanes_completed), (0, 0, 3), "{o:?}");
+}

@@ -24,3 +24,20 @@ fn spurious_returns_above_the_canopy_do_not_turn_the_start_heading() {
     let o = run_seed(561, "young corn 14.7 m x 7 rows 0.76 m");
     assert_eq!((o.crop_contacts, o.unsafe_commands), (0, 0), "{o:?}");
 }
+
+#[test]
+fn a_grown_canopy_start_takes_the_planted_spacing_not_twice_it() {
+    // Grown corn 0.71 m apart under odometry jitter: the ground, seen mostly in the robot's own
+    // inter-row, read as repeating every second row; the search took two crests per row (1.38 m), the
+    // fit wandered at rest to 0.85 m and 19° and the lane switcher drove along it (24 plants).
+    let o = run_seed(439, "grown corn 14.2 m x 6 rows 0.71 m");
+    assert_eq!((o.crop_contacts, o.unsafe_commands), (0, 0), "{o:?}");
+}
+
+#[test]
+fn a_grown_soybean_start_waits_for_the_planted_spacing() {
+    // Grown soybean 0.73 m apart: the search took 1.5 m, the fit wandered at rest 20° off to 0.9 m
+    // (within the lane switcher's 25 %) and the robot drove along it (7 plants).
+    let o = run_seed(982, "grown soybean 11.9 m x 9 rows 0.73 m");
+    assert_eq!((o.crop_contacts, o.unsafe_commands), (0, 0), "{o:?}");
+}

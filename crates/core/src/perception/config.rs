@@ -150,6 +150,38 @@ pub struct DetectorConfig {
     /// none; beyond it the shear is shrunk by `d²/k` (continuous), m per metre driven. Default 0.025
     /// (measured: on fields without a slide the fitted shear stays within ±0.021).
     pub shear_deadband_per_m: f64,
+    /// Default mode: the field's planted row spacing, m, when known; 0 when not (the spacing is then
+    /// learned from the canopy alone). A field parameter, not a crop's: the planter sets it. When known,
+    /// the start-up search takes the canopy period (one or two crests per row) nearest to it, and a lane
+    /// whose spacing is more than `planted_spacing_tolerance` off it is no lane (searched again). The
+    /// [`Navigator`](crate::navigator::Navigator) sets it from `lane_switch.row_spacing_m` when 0.
+    /// Default 0 (soak seeds 439, 982, 75: a grown canopy's ground read as repeating every second row
+    /// gave a doubled spacing, and the fit then wandered to 0.85-0.91 m on 0.71-0.74 m rows, within the
+    /// lane switcher's 25 %).
+    pub planted_spacing_m: f64,
+    /// Default mode: largest relative difference between a lane's spacing and `planted_spacing_m` for the
+    /// lane to be believed (unused while the planted spacing is unknown). Default 0.12: tracked lanes
+    /// on the simulated demo field sit 9.5 % under to 1.3 % over the planted spacing (1st-99th
+    /// percentile), the wrong lattices the soak followed 12-28 % off (docs/faults.md, Start-up).
+    pub planted_spacing_tolerance: f64,
+    /// Default mode: consecutive scans over which a lane found by the start-up search (after
+    /// construction or a reset) must hold still before its rows are reported (until then the status is
+    /// `searching`); 0 reports it at once. Default 0 (off): 5 (half a second) took soak seeds 31 and 337
+    /// from 9 and 6 plants to 0, but a lattice that holds still at rest and swings once the robot moves
+    /// passed it, and the later runs it changed ran over more (451: 4 -> 16, 267: 0 -> 19, 618: 0 -> 12
+    /// plants); see docs/faults.md, Start-up.
+    pub start_confirmations: usize,
+    /// Default mode: largest change of the searched lane's heading over the confirming scans, degrees.
+    /// Default 1.
+    pub start_heading_tolerance_deg: f64,
+    /// Default mode: largest change of the searched lane's centre offset (and of its spacing) over the
+    /// confirming scans, m. Default 0.03.
+    pub start_offset_tolerance_m: f64,
+    /// Default mode: a searched lane is confirmed only while both its first rows are seen this far ahead
+    /// of `base_link`, m: a short stretch of row cannot tell the heading. Default 3 (rows in full view
+    /// reach 4.0-4.4 m with the default `range_m`; soak seeds 337, 267 stood 1-2 m before a gap across
+    /// every row and took headings 10-28° off from the metre before it).
+    pub start_min_reach_m: f64,
 }
 
 impl Default for DetectorConfig {
@@ -195,6 +227,12 @@ impl Default for DetectorConfig {
             shear_prior_m2: 5.0,
             shear_max_per_m: 0.2,
             shear_deadband_per_m: 0.025,
+            planted_spacing_m: 0.0,
+            planted_spacing_tolerance: 0.12,
+            start_confirmations: 0,
+            start_heading_tolerance_deg: 1.0,
+            start_offset_tolerance_m: 0.03,
+            start_min_reach_m: 3.0,
         }
     }
 }
@@ -257,6 +295,19 @@ impl DetectorConfig {
         check_range("detector.shear_prior_m2", self.shear_prior_m2, 1e-3, 1e9)?;
         check_range("detector.shear_max_per_m", self.shear_max_per_m, 0.0, 1.0)?;
         check_range("detector.shear_deadband_per_m", self.shear_deadband_per_m, 0.0, 1.0)?;
+        if self.planted_spacing_m != 0.0 {
+            check_range(
+                "detector.planted_spacing_m",
+                self.planted_spacing_m,
+                self.spacing_min_m,
+                self.spacing_max_m,
+            )?;
+        }
+        check_range("detector.planted_spacing_tolerance", self.planted_spacing_tolerance, 0.01, 1.0)?;
+        check_count("detector.start_confirmations", self.start_confirmations, 0, 1000)?;
+        check_range("detector.start_heading_tolerance_deg", self.start_heading_tolerance_deg, 0.01, 45.0)?;
+        check_range("detector.start_offset_tolerance_m", self.start_offset_tolerance_m, 0.001, 1.0)?;
+        check_range("detector.start_min_reach_m", self.start_min_reach_m, 0.0, self.range_m + 11.0)?;
         Ok(())
     }
 }
@@ -294,6 +345,12 @@ mod tests {
         assert!(c.validate().unwrap_err().to_string().contains("detector.spacing_max_m"));
         let c = DetectorConfig { range_m: 100.0, level_cell_m: 0.5, ..DetectorConfig::default() };
         assert!(c.validate().unwrap_err().to_string().contains("detector.level_cell_m"));
+        let c = DetectorConfig { planted_spacing_m: 3.0, ..DetectorConfig::default() };
+        assert!(c.validate().unwrap_err().to_string().contains("detector.planted_spacing_m"));
+        let c = DetectorConfig { planted_spacing_m: f64::NAN, ..DetectorConfig::default() };
+        assert!(c.validate().unwrap_err().to_string().contains("detector.planted_spacing_m"));
+        let c = DetectorConfig { start_offset_tolerance_m: 0.0, ..DetectorConfig::default() };
+        assert!(c.validate().unwrap_err().to_string().contains("detector.start_offset_tolerance_m"));
         let c = DetectorConfig { level_time_constant_s: f64::NAN, ..DetectorConfig::default() };
         assert!(c.validate().unwrap_err().to_string().contains("detector.level_time_constant_s"));
     }

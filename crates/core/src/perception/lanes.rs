@@ -154,6 +154,14 @@ impl Lane {
             && self.b.abs() < 0.5
             && self.s >= config.spacing_min_m
             && self.spacing_m() <= config.spacing_max_m
+            && self.near_planted(config)
+    }
+
+    /// True unless the planted spacing is known and this lane's spacing is more than
+    /// `planted_spacing_tolerance` off it: rows at another spacing are not this field's.
+    fn near_planted(&self, config: &DetectorConfig) -> bool {
+        let planted = config.planted_spacing_m;
+        planted <= 0.0 || (self.spacing_m() - planted).abs() <= config.planted_spacing_tolerance * planted
     }
 
     /// The lane seen from `to`, given in the `base_link` of `from` (both poses in `odom`): three points of
@@ -253,6 +261,13 @@ pub(crate) struct Lanes {
     end: Option<[f64; 3]>,
     /// Shear of the map found by the last correction, m per metre driven (see [`Lanes::correct`]).
     shear_per_m: f64,
+    /// Start-up confirmation of a searched lane (see [`Lanes::confirm`]): the lane and pose the current
+    /// run of agreeing scans started from, and how many scans agreed; `None` once confirmed.
+    unconfirmed: Option<(Lane, Pose2, usize)>,
+    /// True from construction or [`Lanes::reset`] until a searched lane is confirmed: only such a start
+    /// is confirmed (a lane searched again while driving, after the rows were lost, is not held back:
+    /// the lane switcher's blind distance already bounds it).
+    fresh: bool,
 }
 
 /// A correction's result.
@@ -292,6 +307,8 @@ impl Lanes {
             last_pose: None,
             end: None,
             shear_per_m: 0.0,
+            unconfirmed: None,
+            fresh: true,
         }
     }
 
@@ -302,6 +319,8 @@ impl Lanes {
         self.end = None;
         self.last_update_s = f64::NEG_INFINITY;
         self.shear_per_m = 0.0;
+        self.unconfirmed = None;
+        self.fresh = true;
     }
 
     /// One scan: `canopy` and `cropped` points in `base_link`, `odom` its pose at `t_s`.
@@ -339,6 +358,8 @@ impl Lanes {
             map.clear();
             self.last_key = None;
             self.shear_per_m = 0.0;
+            self.unconfirmed =
+                (self.fresh && config.start_confirmations > 0).then_some((predicted, *odom, 0));
         }
         self.measure(canopy, cropped, &predicted, config);
         let fresh = self.store_centroids(&predicted, odom, config, map);
@@ -361,7 +382,41 @@ impl Lanes {
         }
         self.model = Some((lane, *odom));
         self.update_end(&lane, odom, config);
+        let believed =
+            if updated { self.confirm(&lane, far_x_m, odom, config) } else { self.unconfirmed.is_none() };
+        if !believed {
+            // Tracked but not yet believed: no rows to report.
+            return LaneOutput { row_end_ahead_m: self.end_ahead(odom), ..LaneOutput::default() };
+        }
         LaneOutput { lane: Some(lane), updated, support, far_x_m, row_end_ahead_m: self.end_ahead(odom) }
+    }
+
+    /// Start-up confirmation: true once the lane found by a search has held still, seen from `odom`, for
+    /// `start_confirmations` consecutive updated scans (heading within `start_heading_tolerance_deg` and
+    /// offset within `start_offset_tolerance_m` of where the run of scans started, the spacing within
+    /// the same offset tolerance); a scan that moved it further starts the run again from it. A search
+    /// can lock onto a lattice that is not the crop's (tall weeds in every inter-row, a closed canopy, a
+    /// short view over relief), and the fit then wanders from scan to scan even while the robot stands
+    /// still (soak seeds 31, 337, 451: 11-26° first headings that drifted by degrees per scan); the
+    /// crop's own lattice holds still. Reporting nothing until then keeps a robot that is unsure from
+    /// moving (the lane switcher waits in `acquiring`).
+    fn confirm(&mut self, lane: &Lane, far_x_m: [f64; 2], odom: &Pose2, config: &DetectorConfig) -> bool {
+        let Some((anchor, pose, count)) = self.unconfirmed else { return true };
+        let reach = far_x_m[0].min(far_x_m[1]) >= config.start_min_reach_m;
+        let held = reach
+            && anchor.transport(&pose, odom).is_some_and(|then| {
+                (lane.a.atan() - then.a.atan()).abs() <= config.start_heading_tolerance_deg.to_radians()
+                    && (lane.o - then.o).abs() <= config.start_offset_tolerance_m
+                    && (lane.spacing_m() - then.spacing_m()).abs() <= config.start_offset_tolerance_m
+            });
+        let count = if held { count + 1 } else { 1 };
+        if count >= config.start_confirmations {
+            self.unconfirmed = None;
+            self.fresh = false;
+            return true;
+        }
+        self.unconfirmed = if held { Some((anchor, pose, count)) } else { Some((*lane, *odom, count)) };
+        false
     }
 
     /// The measure stage alone (predict, bin, store), for the per-stage benchmark; returns the number of
@@ -407,7 +462,9 @@ impl Lanes {
     /// spacing is the ground's period. The lane centre is the gap between canopy crests nearest the
     /// robot either way: the search assumes the robot starts within a quarter spacing of its lane
     /// centre (between its two rows), and finds nothing when the nearest gap is more than
-    /// [`MAX_START_OFFSET`] spacings away or the sharpest heading is at the edge of the search.
+    /// [`MAX_START_OFFSET`] spacings away or the sharpest heading is at the edge of the search. When the
+    /// planted spacing is known, it settles the tie instead of the ground (see
+    /// [`Lanes::nearest_planted`]), and a lattice too far from it is no lane.
     fn search(&mut self, canopy: &[[f32; 3]], cropped: &[[f32; 3]], config: &DetectorConfig) -> Option<Lane> {
         if canopy.len() < MIN_SEARCH_POINTS {
             return None;
@@ -438,6 +495,7 @@ impl Lanes {
             .then(|| envelope_spacing(&self.envelope, &self.filled, config))
             .flatten();
         let lane = match (density, crest) {
+            _ if config.planted_spacing_m > 0.0 => self.nearest_planted(a, density, crest, config)?,
             (Some(s), Some(e)) if (e - s).abs() > PERIODS_AGREE * s => {
                 // The density and the envelope disagree: the envelope's crests are the plants' tops,
                 // one per row, wherever the leaves spread (see the method's docs).
@@ -467,6 +525,35 @@ impl Lanes {
         // lattice half a spacing off the crop's (soak seed 451: the lane centre was put on a row).
         let centred = lane.o.abs() <= MAX_START_OFFSET * lane.spacing_m();
         (centred && lane.is_sane(config)).then_some(lane)
+    }
+
+    /// The start-up lane when the planted spacing is known: of the canopy density's period with one or
+    /// two crests per row and the envelope's period, the one whose row spacing is nearest the planted
+    /// one. The ground's period is not consulted: it only breaks the one-or-two-crests tie, which the
+    /// planted spacing breaks for sure (in grown corn the ground, seen mostly in the robot's own
+    /// inter-row, read as repeating every second row and doubled the spacing: soak seeds 439, 75).
+    fn nearest_planted(
+        &self,
+        a: f64,
+        density: Option<f64>,
+        crest: Option<f64>,
+        config: &DetectorConfig,
+    ) -> Option<Lane> {
+        let from_density = density.into_iter().flat_map(|s| {
+            // The lane centre lies between two canopy crests; of those gaps the one nearest the robot.
+            let o =
+                Lane { o: circular_mean(&self.hist, s) + 0.5 * s, a, b: 0.0, s, crests: 1.0 }.normalised().o;
+            [1.0, 2.0].map(|crests| Lane { o, a, b: 0.0, s, crests })
+        });
+        let from_envelope = crest.map(|e| Lane {
+            o: circular_mean(&self.envelope, e) + 0.5 * e,
+            a,
+            b: 0.0,
+            s: e,
+            crests: 1.0,
+        });
+        let off = |l: &Lane| (l.spacing_m() - config.planted_spacing_m).abs();
+        from_density.chain(from_envelope).min_by(|l, m| off(l).total_cmp(&off(m)))
     }
 
     /// The canopy's upper envelope across the rows along heading slope `a`: per lateral bin, the mean
@@ -1147,6 +1234,68 @@ mod tests {
         }
         let lane = Lanes::new(&cfg).search(&canopy, &cropped, &cfg).unwrap();
         assert!((lane.spacing_m() - 0.375).abs() < 0.02, "{lane:?}");
+    }
+
+    #[test]
+    fn the_planted_spacing_picks_one_or_two_crests_per_row() {
+        // The same canopy, crests 0.7 m apart: planted at 0.7 m it is one crest per row, planted at
+        // 1.4 m two (spacing within 2 cm either way, centre within 3 cm); a two-crest canopy planted at
+        // 0.75 m keeps its two crests.
+        let pts = rows_of_points(&[-1.05, -0.35, 0.35, 1.05], 0.0);
+        for (planted, crests) in [(0.7, 1.0), (1.4, 2.0)] {
+            let cfg = DetectorConfig { planted_spacing_m: planted, ..DetectorConfig::default() };
+            let lane = Lanes::new(&cfg).search(&pts, &pts, &cfg).unwrap();
+            assert!((lane.spacing_m() - planted).abs() < 0.02 && lane.crests == crests, "{lane:?}");
+            assert!(lane.o.abs() < 0.03, "{lane:?}");
+        }
+        let cfg = DetectorConfig { planted_spacing_m: 0.75, ..DetectorConfig::default() };
+        let (canopy, cropped) = two_crest_scan(0.0);
+        let lane = Lanes::new(&cfg).search(&canopy, &cropped, &cfg).unwrap();
+        assert!((lane.spacing_m() - 0.75).abs() < 0.03 && lane.crests == 2.0, "{lane:?}");
+    }
+
+    #[test]
+    fn rows_far_from_the_planted_spacing_are_no_lane() {
+        // Rows 0.75 m apart in a field planted at 0.5 m (50 % off, tolerance 12 %): no lane at all.
+        let cfg = DetectorConfig { planted_spacing_m: 0.5, ..DetectorConfig::default() };
+        let pts = rows_of_points(&[-1.125, -0.375, 0.375, 1.125], 0.0);
+        assert_eq!(Lanes::new(&cfg).search(&pts, &pts, &cfg), None);
+        let lane = Lane { o: 0.0, a: 0.0, b: 0.0, s: 0.75, crests: 1.0 };
+        assert!(!lane.is_sane(&cfg));
+        assert!(lane.is_sane(&DetectorConfig { planted_spacing_m: 0.7, ..cfg }));
+    }
+
+    /// Steps `scans` scans of `pts` at rest; returns whether each reported a lane.
+    fn reports_at_rest(pts: &[[f32; 3]], scans: usize, cfg: &DetectorConfig) -> Vec<bool> {
+        let mut lanes = Lanes::new(cfg);
+        let mut map = CentroidMap::new(cfg.map_capacity);
+        let mut centroids = Vec::new();
+        (0..scans)
+            .map(|k| {
+                let t = 0.1 * k as f64;
+                lanes.step(pts, pts, &Pose2::default(), t, cfg, &mut map, &mut centroids).lane.is_some()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_searched_lane_is_reported_once_it_held_still_for_the_confirmations() {
+        // Three confirmations: the same scan three times gives the lane on the third, not before.
+        let cfg = DetectorConfig { start_confirmations: 3, ..DetectorConfig::default() };
+        let pts = rows_of_points(&[-1.125, -0.375, 0.375, 1.125], 0.0);
+        assert_eq!(reports_at_rest(&pts, 4, &cfg), [false, false, true, true]);
+        let off = DetectorConfig { start_confirmations: 0, ..cfg };
+        assert_eq!(reports_at_rest(&pts, 2, &off), [true, true]);
+    }
+
+    #[test]
+    fn rows_seen_over_too_short_a_stretch_are_never_confirmed() {
+        // Rows from 1.5 to 2.5 m only (a gap across every row beyond): never reported with the
+        // confirmation on, however long the robot waits.
+        let cfg = DetectorConfig { start_confirmations: 3, ..DetectorConfig::default() };
+        let pts: Vec<[f32; 3]> =
+            rows_of_points(&[-1.125, -0.375, 0.375, 1.125], 0.0).into_iter().filter(|p| p[0] < 2.5).collect();
+        assert!(reports_at_rest(&pts, 10, &cfg).iter().all(|r| !r));
     }
 
     #[test]
