@@ -262,6 +262,18 @@ pub struct LaneSwitchConfig {
     pub max_end_recession_m: f64,
     /// Reports of a row end past `max_end_recession_m` that stop the robot. Default 5.
     pub end_recession_scans: u32,
+    /// Time the robot stands still where it starts to clear a row end when the rows turned in
+    /// `odom` while it followed them (see `bias_suspect_rad_per_m`), s; 0 never stops there. At rest
+    /// the EKF's bias check finds a gyro bias step in one block (`ekf.bias_check_rest_s`, 1 s), which
+    /// the pivots would otherwise turn by for 10-15 s blind. Default 1.5 (a second at rest after the
+    /// wheels settle); the stop costs about 3 s with braking and starting (docs/faults.md).
+    pub bias_dwell_s: f64,
+    /// Rate at which the followed rows' direction in `odom` must turn, over each 2 m driven, for a
+    /// gyro bias error to be suspected, rad/m. The rows stay where they are: their direction in
+    /// `odom` turns by the odometry's heading error, the bias error over the speed (0.021 rad/s at
+    /// 0.5 m/s is 0.042 rad/m). Default 0.015 (0.0075 rad/s at cruise speed): the soak's curved rows
+    /// bend by at most 0.004 rad/m, a fit's heading wobbles by about 0.01 rad per 2 m.
+    pub bias_suspect_rad_per_m: f64,
 }
 
 impl Default for LaneSwitchConfig {
@@ -304,6 +316,8 @@ impl Default for LaneSwitchConfig {
             gap_confirmations: 3,
             max_end_recession_m: 2.0,
             end_recession_scans: 5,
+            bias_dwell_s: 1.5,
+            bias_suspect_rad_per_m: 0.015,
         }
     }
 }
@@ -354,6 +368,8 @@ impl LaneSwitchConfig {
         check_range("lane_switch.gap_confirmations", f64::from(self.gap_confirmations), 0.0, 1000.0)?;
         check_range("lane_switch.max_end_recession_m", self.max_end_recession_m, 0.1, 100.0)?;
         check_range("lane_switch.end_recession_scans", f64::from(self.end_recession_scans), 1.0, 1000.0)?;
+        check_range("lane_switch.bias_dwell_s", self.bias_dwell_s, 0.0, 30.0)?;
+        check_range("lane_switch.bias_suspect_rad_per_m", self.bias_suspect_rad_per_m, 1e-3, 1.0)?;
         let shift = self.shift_m();
         check_range("lane_switch.turn_radius_m", self.turn_radius_m, 0.0, 0.5 * shift)?;
         let reach = self.turn_excursion_m();
@@ -580,6 +596,20 @@ pub struct Guidance {
     pub lanes_completed: u32,
     /// Index of the current lane (see [`LaneSwitchConfig::start_lane`]).
     pub lane: u32,
+    /// True while the robot must stand still (zero command) without being stopped: the dwell at a row
+    /// end that lets the odometry learn a gyro bias at rest (`bias_dwell_s`).
+    pub hold: bool,
+}
+
+/// The stand at a row end for the gyro bias (see `LaneSwitchConfig::bias_dwell_s`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Dwell {
+    /// No stand due.
+    Off,
+    /// Braking to a stop.
+    Braking,
+    /// Standing still since this stamp, s.
+    Holding(f64),
 }
 
 /// The lane-switching state machine. Its paths are allocated once, in [`LaneSwitcher::new`].
@@ -627,7 +657,21 @@ pub struct LaneSwitcher {
     end_anchor: Option<Pose2>,
     /// Row ends reported past `max_end_recession_m` from the anchor.
     receding: u32,
+    /// The latest stamp given by [`LaneSwitcher::set_time`], s.
+    now_s: Option<f64>,
+    /// Distance driven while following, m, and where (and at which row direction in `odom`, rad)
+    /// the current 2 m block of the bias suspicion began.
+    odometer_m: f64,
+    heading_block: Option<(f64, f64)>,
+    /// The rows turned in `odom` over the latest block faster than `bias_suspect_rad_per_m`.
+    bias_suspect: bool,
+    dwell: Dwell,
 }
+
+/// Distance over which the followed rows' turn in `odom` is measured for the bias suspicion, m.
+const BIAS_SUSPECT_BLOCK_M: f64 = 2.0;
+/// Largest distance per update that counts as standing still, m (1 cm/s at 10 Hz).
+const REST_STEP_M: f64 = 1e-3;
 
 impl LaneSwitcher {
     /// Validates both configurations.
@@ -660,8 +704,25 @@ impl LaneSwitcher {
             gap_seen_from: None,
             end_anchor: None,
             receding: 0,
+            now_s: None,
+            odometer_m: 0.0,
+            heading_block: None,
+            bias_suspect: false,
+            dwell: Dwell::Off,
             cfg,
         })
+    }
+
+    /// Gives the stamp of the next [`LaneSwitcher::update`], s: the dwell at a row end is timed with
+    /// it. Without stamps (never called, or a non-finite one) the robot never stands there.
+    pub fn set_time(&mut self, stamp_s: f64) {
+        self.now_s = Some(stamp_s).filter(|t| t.is_finite());
+    }
+
+    /// True when the rows turned in `odom` over the latest 2 m followed (see
+    /// `LaneSwitchConfig::bias_suspect_rad_per_m`).
+    pub fn bias_suspected(&self) -> bool {
+        self.bias_suspect
     }
 
     /// The configuration.
@@ -912,6 +973,9 @@ impl LaneSwitcher {
                 self.follow(odom, detection, travelled);
             }
             Mode::ClearingRowEnd => {
+                if self.dwelling(travelled) {
+                    return self.guidance(reset_detector, odom);
+                }
                 if let (Some(d), Some(end)) = (detection, self.row_end)
                     && let Some(ahead) = self.end_ahead(d)
                 {
@@ -1057,6 +1121,7 @@ impl LaneSwitcher {
     fn speed_mps(&self, odom: &Pose2) -> f64 {
         match self.mode {
             Mode::Following => self.cfg.cruise_speed_mps,
+            Mode::ClearingRowEnd if self.dwell != Dwell::Off => 0.0,
             Mode::ClearingRowEnd => match self.row_end {
                 Some(end) if self.stops_at_turn_start() => {
                     self.cfg.turn_speed_mps.min(self.braking_speed(self.exit_start_m() - along(&end, odom)))
@@ -1083,6 +1148,39 @@ impl LaneSwitcher {
             reset_detector,
             lanes_completed: self.lanes_completed,
             lane: self.lane,
+            hold: self.mode == Mode::ClearingRowEnd && matches!(self.dwell, Dwell::Holding(_)),
+        }
+    }
+
+    /// Advances the stand at a row end; true while it lasts. Standing starts once an update moved
+    /// the robot less than `REST_STEP_M`.
+    fn dwelling(&mut self, travelled: f64) -> bool {
+        let Some(now) = self.now_s else {
+            self.dwell = Dwell::Off;
+            return false;
+        };
+        self.dwell = match self.dwell {
+            Dwell::Braking if travelled < REST_STEP_M => Dwell::Holding(now),
+            Dwell::Holding(since) if now - since >= self.cfg.bias_dwell_s => Dwell::Off,
+            other => other,
+        };
+        self.dwell != Dwell::Off
+    }
+
+    /// Measures how fast the followed rows turn in `odom` (see `bias_suspect_rad_per_m`), once per
+    /// `BIAS_SUSPECT_BLOCK_M` driven with rows seen.
+    fn watch_row_heading(&mut self, travelled: f64, saw_rows: bool) {
+        self.odometer_m += travelled;
+        let Some(path) = self.reference.path().filter(|_| saw_rows) else { return };
+        let heading = path.pose_at(self.s_hint_m).yaw;
+        match self.heading_block {
+            Some((from_m, from_yaw)) if self.odometer_m - from_m >= BIAS_SUSPECT_BLOCK_M => {
+                let rate = wrap_angle(heading - from_yaw) / (self.odometer_m - from_m);
+                self.bias_suspect = rate.abs() > self.cfg.bias_suspect_rad_per_m;
+                self.heading_block = Some((self.odometer_m, heading));
+            }
+            Some(_) => {}
+            None => self.heading_block = Some((self.odometer_m, heading)),
         }
     }
 
@@ -1099,6 +1197,9 @@ impl LaneSwitcher {
         self.crop_past_end = 0;
         self.end_anchor = None;
         self.receding = 0;
+        self.heading_block = None;
+        self.bias_suspect = false;
+        self.dwell = Dwell::Off;
         self.s_hint_m = self.reference.path().map_or(0.0, |p| p.project(odom, 0.0).s_m);
     }
 
@@ -1129,6 +1230,7 @@ impl LaneSwitcher {
         if let Some(path) = self.reference.path() {
             self.s_hint_m = path.project(odom, self.s_hint_m).s_m;
         }
+        self.watch_row_heading(travelled, saw_rows);
         let ended = detection.is_some_and(|d| d.status == RowStatus::EndOfRow);
         if let Some(end) = self.row_end
             && (ended || along(&end, odom) >= 0.0)
@@ -1136,6 +1238,10 @@ impl LaneSwitcher {
             // Past the canopy the detector's lines mean nothing: hold the last row direction.
             self.reference.straighten_at(odom);
             self.mode = Mode::ClearingRowEnd;
+            // Rows that turned in `odom` mean the heading drifts: stand still for the EKF to learn
+            // the gyro bias at rest before the blind drive and the pivots.
+            let dwell = self.bias_suspect && self.cfg.bias_dwell_s > 0.0 && self.now_s.is_some();
+            self.dwell = if dwell { Dwell::Braking } else { Dwell::Off };
             return;
         }
         // Close to a row end the detector has seen, the last plants have left the scan: rows missing or
