@@ -271,8 +271,10 @@ pub struct LaneSwitchConfig {
     /// Rate at which the followed rows' direction in `odom` must turn, over each 2 m driven, for a
     /// gyro bias error to be suspected, rad/m. The rows stay where they are: their direction in
     /// `odom` turns by the odometry's heading error, the bias error over the speed (0.021 rad/s at
-    /// 0.5 m/s is 0.042 rad/m). Default 0.015 (0.0075 rad/s at cruise speed): the soak's curved rows
-    /// bend by at most 0.004 rad/m, a fit's heading wobbles by about 0.01 rad per 2 m.
+    /// 0.5 m/s is 0.042 rad/m), of which the map fit follows about two thirds (soak seed 664: 0.017
+    /// of 0.026 rad/m). Default 0.01 (a 0.0075 rad/s bias error at cruise speed): the soak's curved
+    /// rows bend by at most 0.004 rad/m, a fit's heading wobbles by about 0.01 rad per 2 m. A false
+    /// suspicion costs one stand.
     pub bias_suspect_rad_per_m: f64,
 }
 
@@ -317,7 +319,7 @@ impl Default for LaneSwitchConfig {
             max_end_recession_m: 2.0,
             end_recession_scans: 5,
             bias_dwell_s: 1.5,
-            bias_suspect_rad_per_m: 0.015,
+            bias_suspect_rad_per_m: 0.01,
         }
     }
 }
@@ -659,17 +661,22 @@ pub struct LaneSwitcher {
     receding: u32,
     /// The latest stamp given by [`LaneSwitcher::set_time`], s.
     now_s: Option<f64>,
-    /// Distance driven while following, m, and where (and at which row direction in `odom`, rad)
-    /// the current 2 m block of the bias suspicion began.
+    /// Distance driven while following, m, and the followed rows' direction in `odom` (rad) every
+    /// `ROW_HEADING_STEP_M` of it, newest first; `row_headings_len` of them are valid.
     odometer_m: f64,
-    heading_block: Option<(f64, f64)>,
-    /// The rows turned in `odom` over the latest block faster than `bias_suspect_rad_per_m`.
+    row_headings: [(f64, f64); ROW_HEADINGS],
+    row_headings_len: usize,
+    /// The rows turned in `odom` over the latest 2 m followed faster than `bias_suspect_rad_per_m`.
     bias_suspect: bool,
     dwell: Dwell,
 }
 
-/// Distance over which the followed rows' turn in `odom` is measured for the bias suspicion, m.
-const BIAS_SUSPECT_BLOCK_M: f64 = 2.0;
+/// Distance over which the followed rows' turn in `odom` is measured for the bias suspicion, m: a
+/// fit's heading wobbles by about 0.01 rad, so over 2 m the rate is good to 0.005-0.007 rad/m.
+const BIAS_SUSPECT_WINDOW_M: f64 = 2.0;
+/// Spacing of the row directions kept for it, m, and how many are kept (the window and one more).
+const ROW_HEADING_STEP_M: f64 = 0.25;
+const ROW_HEADINGS: usize = 9;
 /// Largest distance per update that counts as standing still, m (1 cm/s at 10 Hz).
 const REST_STEP_M: f64 = 1e-3;
 
@@ -706,7 +713,8 @@ impl LaneSwitcher {
             receding: 0,
             now_s: None,
             odometer_m: 0.0,
-            heading_block: None,
+            row_headings: [(0.0, 0.0); ROW_HEADINGS],
+            row_headings_len: 0,
             bias_suspect: false,
             dwell: Dwell::Off,
             cfg,
@@ -1167,20 +1175,25 @@ impl LaneSwitcher {
         self.dwell != Dwell::Off
     }
 
-    /// Measures how fast the followed rows turn in `odom` (see `bias_suspect_rad_per_m`), once per
-    /// `BIAS_SUSPECT_BLOCK_M` driven with rows seen.
+    /// Measures how fast the followed rows turn in `odom` (see `bias_suspect_rad_per_m`) over the
+    /// last `BIAS_SUSPECT_WINDOW_M` driven with rows seen, every `ROW_HEADING_STEP_M`.
     fn watch_row_heading(&mut self, travelled: f64, saw_rows: bool) {
         self.odometer_m += travelled;
         let Some(path) = self.reference.path().filter(|_| saw_rows) else { return };
+        let newest = self.row_headings[..self.row_headings_len].first();
+        if newest.is_some_and(|(at_m, _)| self.odometer_m - at_m < ROW_HEADING_STEP_M) {
+            return;
+        }
         let heading = path.pose_at(self.s_hint_m).yaw;
-        match self.heading_block {
-            Some((from_m, from_yaw)) if self.odometer_m - from_m >= BIAS_SUSPECT_BLOCK_M => {
-                let rate = wrap_angle(heading - from_yaw) / (self.odometer_m - from_m);
-                self.bias_suspect = rate.abs() > self.cfg.bias_suspect_rad_per_m;
-                self.heading_block = Some((self.odometer_m, heading));
-            }
-            Some(_) => {}
-            None => self.heading_block = Some((self.odometer_m, heading)),
+        self.row_headings.rotate_right(1);
+        self.row_headings[0] = (self.odometer_m, heading);
+        self.row_headings_len = (self.row_headings_len + 1).min(ROW_HEADINGS);
+        let window = self.row_headings[..self.row_headings_len]
+            .iter()
+            .find(|(at_m, _)| self.odometer_m - at_m >= BIAS_SUSPECT_WINDOW_M);
+        if let Some((at_m, yaw)) = window {
+            let rate = wrap_angle(heading - yaw) / (self.odometer_m - at_m);
+            self.bias_suspect = rate.abs() > self.cfg.bias_suspect_rad_per_m;
         }
     }
 
@@ -1197,7 +1210,7 @@ impl LaneSwitcher {
         self.crop_past_end = 0;
         self.end_anchor = None;
         self.receding = 0;
-        self.heading_block = None;
+        self.row_headings_len = 0;
         self.bias_suspect = false;
         self.dwell = Dwell::Off;
         self.s_hint_m = self.reference.path().map_or(0.0, |p| p.project(odom, 0.0).s_m);
@@ -1612,6 +1625,74 @@ mod tests {
 
     /// A switcher that followed y = 0 from x = 1 and saw the canopy end 2 m ahead (x = 3), with the
     /// row centroids `centroids` (`base_link` at x = 1), then drove on to `to_x` (or until it turns).
+    /// Follows rows from x = 1 to 5 m in `odom` while the odometry's heading turns by `rate` rad/m
+    /// (the rows stay straight ahead of the robot, so they turn in `odom`), one scan per 0.1 m at
+    /// 0.5 m/s, then sees the row end. Returns the switcher, clearing the row end, and the time, s.
+    fn follow_turning_rows(rate: f64) -> (LaneSwitcher, Pose2, f64) {
+        let mut sw = LaneSwitcher::new(LaneSwitchConfig::default(), ReferenceConfig::default()).unwrap();
+        let mut pose = Pose2::new(1.0, 0.0, 0.0);
+        let mut t = 0.0;
+        for i in 0..=40 {
+            let x = 1.0 + 0.1 * f64::from(i);
+            pose = Pose2::new(x, 0.0, -rate * (x - 1.0));
+            t = 0.2 * f64::from(i);
+            sw.set_time(t);
+            sw.update(&pose, Some(&rows(t, 0.0)));
+            assert_eq!(sw.mode(), Mode::Following, "at x {x}");
+        }
+        assert_eq!(sw.bias_suspected(), rate.abs() > sw.config().bias_suspect_rad_per_m);
+        t += 0.2;
+        sw.set_time(t);
+        pose = pose.compose(&Pose2::new(0.1, 0.0, 0.0));
+        let g = sw.update(&pose, Some(&Detection::empty(t, RowStatus::EndOfRow)));
+        assert_eq!(g.mode, Mode::ClearingRowEnd);
+        (sw, pose, t)
+    }
+
+    #[test]
+    fn rows_turning_in_odom_make_the_robot_stand_at_the_row_end_for_the_dwell() {
+        // 0.04 rad/m: a 0.02 rad/s gyro bias error at 0.5 m/s.
+        let (mut sw, pose, mut t) = follow_turning_rows(0.04);
+        // Braking: no cruise speed, but the MPC still steers the robot to a stop.
+        t += 0.05;
+        sw.set_time(t);
+        let pose = pose.compose(&Pose2::new(0.02, 0.0, 0.0));
+        let g = sw.update(&pose, None);
+        assert!(g.speed_mps == 0.0 && !g.hold, "{g:?}");
+        // Standing still from the first update that did not move it, for `bias_dwell_s` (1.5 s).
+        let mut held_s = 0.0_f64;
+        loop {
+            t += 0.05;
+            sw.set_time(t);
+            let g = sw.update(&pose, None);
+            if !g.hold {
+                assert!(g.speed_mps > 0.0 && g.mode == Mode::ClearingRowEnd, "{g:?}");
+                break;
+            }
+            held_s += 0.05;
+            assert!(held_s < 3.0, "held too long");
+        }
+        // Stamps every 0.05 s: the stand ends on the first update at least 1.5 s after it began.
+        assert!((held_s - 1.55).abs() < 0.051, "held {held_s} s");
+    }
+
+    #[test]
+    fn straight_rows_in_odom_do_not_stop_the_robot_at_the_row_end() {
+        // 0.005 rad/m: the soak's curved rows bend by up to 0.004 rad/m.
+        let (mut sw, pose, t) = follow_turning_rows(0.005);
+        sw.set_time(t + 0.05);
+        let g = sw.update(&pose, None);
+        assert!(g.speed_mps > 0.0 && !g.hold, "{g:?}");
+    }
+
+    #[test]
+    fn without_stamps_the_robot_never_stands_at_the_row_end() {
+        let (mut sw, pose, _) = follow_turning_rows(0.04);
+        sw.set_time(f64::NAN);
+        let g = sw.update(&pose, None);
+        assert!(g.speed_mps > 0.0 && !g.hold, "{g:?}");
+    }
+
     fn approach_end(cfg: LaneSwitchConfig, centroids: &[[f64; 2]], to_x: f64) -> (LaneSwitcher, f64) {
         let mut sw = LaneSwitcher::new(cfg, ReferenceConfig::default()).unwrap();
         let ended = |t: f64, ahead: f64| Detection { row_end_ahead_m: Some(ahead), ..rows(t, 0.0) };
