@@ -17,6 +17,7 @@
 //!            ─► `resume_confirmations` consecutive detections of the lane followed before ─► Following
 //! Always:    rows at a spacing over `spacing_tolerance` off `row_spacing_m` are not believed (no row)
 //! Following: a centre line over `max_line_jump_m` from the one followed is not believed (no row)
+//! ClearingRowEnd: the rows turned in `odom` ─► stand still for `bias_dwell_s` first (gyro bias)
 //! Entering:  rows disagree with the planned lane ─► Stopped { WrongLane };
 //!            too deep into the field unconfirmed ─► Stopped { ReentryNotConfirmed }
 //! Following, ClearingRowEnd: crop past the row end beyond an empty stretch ─► Following (a gap; opt-in)
@@ -48,6 +49,13 @@
 //! binding); when the measured ends need more than `max_headland_excursion_m`, the robot stops
 //! (`no_room_to_turn`) instead. The planned maximum of `d`, the along-row distance of `base_link`
 //! past the row end, is checked at construction for the square headland.
+//!
+//! A gyro bias error the EKF has not learnt turns `odom` while the robot follows the rows, and the
+//! pivots, driven blind for 10-15 s, would turn by it too. The rows show it: their direction in
+//! `odom` turns (`bias_suspect_rad_per_m`, over the latest 2 m). Then the robot brakes where it starts
+//! to clear the row end and stands still for `bias_dwell_s`, the command held at zero
+//! ([`Guidance::hold`]), so that the EKF finds the bias at rest (`ekf.bias_check_rest_s`). The stand
+//! is timed with the stamps given by [`LaneSwitcher::set_time`].
 //!
 //! After the turn the detector is reset and must confirm the new lane: until one detection agrees
 //! with the plan, the robot drives on odometry alone, and its front tyres stop `clearance_margin_m`
