@@ -329,6 +329,7 @@ impl Navigator {
         let elapsed_s =
             self.last_stamp_s.map_or(self.cfg.mpc.step_s, |t| (stamp_s - t).min(self.cfg.mpc.step_s));
         self.last_stamp_s = Some(stamp_s);
+        self.switcher.set_time(stamp_s);
         let guidance = self.switcher.update(&odom, detection.as_ref());
         if guidance.reset_detector {
             self.detector.reset();
@@ -346,7 +347,7 @@ impl Navigator {
             lane: guidance.lane,
             input_fault: None,
         };
-        let path = if guidance.mode.is_stopped() { None } else { self.switcher.path() };
+        let path = if guidance.mode.is_stopped() || guidance.hold { None } else { self.switcher.path() };
         if let Some(path) = path {
             let frenet = path.project(&odom, self.switcher.progress_m());
             let sol = self.mpc.solve(&frenet, path, guidance.speed_mps, self.last_cmd, budget);

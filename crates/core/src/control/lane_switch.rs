@@ -17,6 +17,7 @@
 //!            ─► `resume_confirmations` consecutive detections of the lane followed before ─► Following
 //! Always:    rows at a spacing over `spacing_tolerance` off `row_spacing_m` are not believed (no row)
 //! Following: a centre line over `max_line_jump_m` from the one followed is not believed (no row)
+//! ClearingRowEnd: the rows turned in `odom` ─► stand still for `bias_dwell_s` first (gyro bias)
 //! Entering:  rows disagree with the planned lane ─► Stopped { WrongLane };
 //!            too deep into the field unconfirmed ─► Stopped { ReentryNotConfirmed }
 //! Following, ClearingRowEnd: crop past the row end beyond an empty stretch ─► Following (a gap; opt-in)
@@ -48,6 +49,13 @@
 //! binding); when the measured ends need more than `max_headland_excursion_m`, the robot stops
 //! (`no_room_to_turn`) instead. The planned maximum of `d`, the along-row distance of `base_link`
 //! past the row end, is checked at construction for the square headland.
+//!
+//! A gyro bias error the EKF has not learnt turns `odom` while the robot follows the rows, and the
+//! pivots, driven blind for 10-15 s, would turn by it too. The rows show it: their direction in
+//! `odom` turns (`bias_suspect_rad_per_m`, over the latest 2 m). Then the robot brakes where it starts
+//! to clear the row end and stands still for `bias_dwell_s`, the command held at zero
+//! ([`Guidance::hold`]), so that the EKF finds the bias at rest (`ekf.bias_check_rest_s`). The stand
+//! is timed with the stamps given by [`LaneSwitcher::set_time`].
 //!
 //! After the turn the detector is reset and must confirm the new lane: until one detection agrees
 //! with the plan, the robot drives on odometry alone, and its front tyres stop `clearance_margin_m`
@@ -262,6 +270,20 @@ pub struct LaneSwitchConfig {
     pub max_end_recession_m: f64,
     /// Reports of a row end past `max_end_recession_m` that stop the robot. Default 5.
     pub end_recession_scans: u32,
+    /// Time the robot stands still where it starts to clear a row end when the rows turned in
+    /// `odom` while it followed them (see `bias_suspect_rad_per_m`), s; 0 never stops there. At rest
+    /// the EKF's bias check finds a gyro bias step in one block (`ekf.bias_check_rest_s`, 1 s), which
+    /// the pivots would otherwise turn by for 10-15 s blind. Default 1.5 (a second at rest after the
+    /// wheels settle); the stop costs about 3 s with braking and starting (docs/faults.md).
+    pub bias_dwell_s: f64,
+    /// Rate at which the followed rows' direction in `odom` must turn, over each 2 m driven, for a
+    /// gyro bias error to be suspected, rad/m. The rows stay where they are: their direction in
+    /// `odom` turns by the odometry's heading error, the bias error over the speed (0.021 rad/s at
+    /// 0.5 m/s is 0.042 rad/m), of which the map fit follows about two thirds (soak seed 664: 0.017
+    /// of 0.026 rad/m). Default 0.01 (a 0.0075 rad/s bias error at cruise speed): the soak's curved
+    /// rows bend by at most 0.004 rad/m, a fit's heading wobbles by about 0.01 rad per 2 m. A false
+    /// suspicion costs one stand.
+    pub bias_suspect_rad_per_m: f64,
 }
 
 impl Default for LaneSwitchConfig {
@@ -304,6 +326,8 @@ impl Default for LaneSwitchConfig {
             gap_confirmations: 3,
             max_end_recession_m: 2.0,
             end_recession_scans: 5,
+            bias_dwell_s: 1.5,
+            bias_suspect_rad_per_m: 0.01,
         }
     }
 }
@@ -354,6 +378,8 @@ impl LaneSwitchConfig {
         check_range("lane_switch.gap_confirmations", f64::from(self.gap_confirmations), 0.0, 1000.0)?;
         check_range("lane_switch.max_end_recession_m", self.max_end_recession_m, 0.1, 100.0)?;
         check_range("lane_switch.end_recession_scans", f64::from(self.end_recession_scans), 1.0, 1000.0)?;
+        check_range("lane_switch.bias_dwell_s", self.bias_dwell_s, 0.0, 30.0)?;
+        check_range("lane_switch.bias_suspect_rad_per_m", self.bias_suspect_rad_per_m, 1e-3, 1.0)?;
         let shift = self.shift_m();
         check_range("lane_switch.turn_radius_m", self.turn_radius_m, 0.0, 0.5 * shift)?;
         let reach = self.turn_excursion_m();
@@ -580,6 +606,20 @@ pub struct Guidance {
     pub lanes_completed: u32,
     /// Index of the current lane (see [`LaneSwitchConfig::start_lane`]).
     pub lane: u32,
+    /// True while the robot must stand still (zero command) without being stopped: the dwell at a row
+    /// end that lets the odometry learn a gyro bias at rest (`bias_dwell_s`).
+    pub hold: bool,
+}
+
+/// The stand at a row end for the gyro bias (see `LaneSwitchConfig::bias_dwell_s`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Dwell {
+    /// No stand due.
+    Off,
+    /// Braking to a stop.
+    Braking,
+    /// Standing still since this stamp, s.
+    Holding(f64),
 }
 
 /// The lane-switching state machine. Its paths are allocated once, in [`LaneSwitcher::new`].
@@ -627,7 +667,26 @@ pub struct LaneSwitcher {
     end_anchor: Option<Pose2>,
     /// Row ends reported past `max_end_recession_m` from the anchor.
     receding: u32,
+    /// The latest stamp given by [`LaneSwitcher::set_time`], s.
+    now_s: Option<f64>,
+    /// Distance driven while following, m, and the followed rows' direction in `odom` (rad) every
+    /// `ROW_HEADING_STEP_M` of it, newest first; `row_headings_len` of them are valid.
+    odometer_m: f64,
+    row_headings: [(f64, f64); ROW_HEADINGS],
+    row_headings_len: usize,
+    /// The rows turned in `odom` over the latest 2 m followed faster than `bias_suspect_rad_per_m`.
+    bias_suspect: bool,
+    dwell: Dwell,
 }
+
+/// Distance over which the followed rows' turn in `odom` is measured for the bias suspicion, m: a
+/// fit's heading wobbles by about 0.01 rad, so over 2 m the rate is good to 0.005-0.007 rad/m.
+const BIAS_SUSPECT_WINDOW_M: f64 = 2.0;
+/// Spacing of the row directions kept for it, m, and how many are kept (the window and one more).
+const ROW_HEADING_STEP_M: f64 = 0.25;
+const ROW_HEADINGS: usize = 9;
+/// Largest distance per update that counts as standing still, m (1 cm/s at 10 Hz).
+const REST_STEP_M: f64 = 1e-3;
 
 impl LaneSwitcher {
     /// Validates both configurations.
@@ -660,8 +719,26 @@ impl LaneSwitcher {
             gap_seen_from: None,
             end_anchor: None,
             receding: 0,
+            now_s: None,
+            odometer_m: 0.0,
+            row_headings: [(0.0, 0.0); ROW_HEADINGS],
+            row_headings_len: 0,
+            bias_suspect: false,
+            dwell: Dwell::Off,
             cfg,
         })
+    }
+
+    /// Gives the stamp of the next [`LaneSwitcher::update`], s: the dwell at a row end is timed with
+    /// it. Without stamps (never called, or a non-finite one) the robot never stands there.
+    pub fn set_time(&mut self, stamp_s: f64) {
+        self.now_s = Some(stamp_s).filter(|t| t.is_finite());
+    }
+
+    /// True when the rows turned in `odom` over the latest 2 m followed (see
+    /// `LaneSwitchConfig::bias_suspect_rad_per_m`).
+    pub fn bias_suspected(&self) -> bool {
+        self.bias_suspect
     }
 
     /// The configuration.
@@ -912,6 +989,9 @@ impl LaneSwitcher {
                 self.follow(odom, detection, travelled);
             }
             Mode::ClearingRowEnd => {
+                if self.dwelling(travelled) {
+                    return self.guidance(reset_detector, odom);
+                }
                 if let (Some(d), Some(end)) = (detection, self.row_end)
                     && let Some(ahead) = self.end_ahead(d)
                 {
@@ -1057,6 +1137,7 @@ impl LaneSwitcher {
     fn speed_mps(&self, odom: &Pose2) -> f64 {
         match self.mode {
             Mode::Following => self.cfg.cruise_speed_mps,
+            Mode::ClearingRowEnd if self.dwell != Dwell::Off => 0.0,
             Mode::ClearingRowEnd => match self.row_end {
                 Some(end) if self.stops_at_turn_start() => {
                     self.cfg.turn_speed_mps.min(self.braking_speed(self.exit_start_m() - along(&end, odom)))
@@ -1083,6 +1164,44 @@ impl LaneSwitcher {
             reset_detector,
             lanes_completed: self.lanes_completed,
             lane: self.lane,
+            hold: self.mode == Mode::ClearingRowEnd && matches!(self.dwell, Dwell::Holding(_)),
+        }
+    }
+
+    /// Advances the stand at a row end; true while it lasts. Standing starts once an update moved
+    /// the robot less than `REST_STEP_M`.
+    fn dwelling(&mut self, travelled: f64) -> bool {
+        let Some(now) = self.now_s else {
+            self.dwell = Dwell::Off;
+            return false;
+        };
+        self.dwell = match self.dwell {
+            Dwell::Braking if travelled < REST_STEP_M => Dwell::Holding(now),
+            Dwell::Holding(since) if now - since >= self.cfg.bias_dwell_s => Dwell::Off,
+            other => other,
+        };
+        self.dwell != Dwell::Off
+    }
+
+    /// Measures how fast the followed rows turn in `odom` (see `bias_suspect_rad_per_m`) over the
+    /// last `BIAS_SUSPECT_WINDOW_M` driven with rows seen, every `ROW_HEADING_STEP_M`.
+    fn watch_row_heading(&mut self, travelled: f64, saw_rows: bool) {
+        self.odometer_m += travelled;
+        let Some(path) = self.reference.path().filter(|_| saw_rows) else { return };
+        let newest = self.row_headings[..self.row_headings_len].first();
+        if newest.is_some_and(|(at_m, _)| self.odometer_m - at_m < ROW_HEADING_STEP_M) {
+            return;
+        }
+        let heading = path.pose_at(self.s_hint_m).yaw;
+        self.row_headings.rotate_right(1);
+        self.row_headings[0] = (self.odometer_m, heading);
+        self.row_headings_len = (self.row_headings_len + 1).min(ROW_HEADINGS);
+        let window = self.row_headings[..self.row_headings_len]
+            .iter()
+            .find(|(at_m, _)| self.odometer_m - at_m >= BIAS_SUSPECT_WINDOW_M);
+        if let Some((at_m, yaw)) = window {
+            let rate = wrap_angle(heading - yaw) / (self.odometer_m - at_m);
+            self.bias_suspect = rate.abs() > self.cfg.bias_suspect_rad_per_m;
         }
     }
 
@@ -1099,6 +1218,9 @@ impl LaneSwitcher {
         self.crop_past_end = 0;
         self.end_anchor = None;
         self.receding = 0;
+        self.row_headings_len = 0;
+        self.bias_suspect = false;
+        self.dwell = Dwell::Off;
         self.s_hint_m = self.reference.path().map_or(0.0, |p| p.project(odom, 0.0).s_m);
     }
 
@@ -1129,6 +1251,7 @@ impl LaneSwitcher {
         if let Some(path) = self.reference.path() {
             self.s_hint_m = path.project(odom, self.s_hint_m).s_m;
         }
+        self.watch_row_heading(travelled, saw_rows);
         let ended = detection.is_some_and(|d| d.status == RowStatus::EndOfRow);
         if let Some(end) = self.row_end
             && (ended || along(&end, odom) >= 0.0)
@@ -1136,6 +1259,10 @@ impl LaneSwitcher {
             // Past the canopy the detector's lines mean nothing: hold the last row direction.
             self.reference.straighten_at(odom);
             self.mode = Mode::ClearingRowEnd;
+            // Rows that turned in `odom` mean the heading drifts: stand still for the EKF to learn
+            // the gyro bias at rest before the blind drive and the pivots.
+            let dwell = self.bias_suspect && self.cfg.bias_dwell_s > 0.0 && self.now_s.is_some();
+            self.dwell = if dwell { Dwell::Braking } else { Dwell::Off };
             return;
         }
         // Close to a row end the detector has seen, the last plants have left the scan: rows missing or
@@ -1506,6 +1633,74 @@ mod tests {
 
     /// A switcher that followed y = 0 from x = 1 and saw the canopy end 2 m ahead (x = 3), with the
     /// row centroids `centroids` (`base_link` at x = 1), then drove on to `to_x` (or until it turns).
+    /// Follows rows from x = 1 to 5 m in `odom` while the odometry's heading turns by `rate` rad/m
+    /// (the rows stay straight ahead of the robot, so they turn in `odom`), one scan per 0.1 m at
+    /// 0.5 m/s, then sees the row end. Returns the switcher, clearing the row end, and the time, s.
+    fn follow_turning_rows(rate: f64) -> (LaneSwitcher, Pose2, f64) {
+        let mut sw = LaneSwitcher::new(LaneSwitchConfig::default(), ReferenceConfig::default()).unwrap();
+        let mut pose = Pose2::new(1.0, 0.0, 0.0);
+        let mut t = 0.0;
+        for i in 0..=40 {
+            let x = 1.0 + 0.1 * f64::from(i);
+            pose = Pose2::new(x, 0.0, -rate * (x - 1.0));
+            t = 0.2 * f64::from(i);
+            sw.set_time(t);
+            sw.update(&pose, Some(&rows(t, 0.0)));
+            assert_eq!(sw.mode(), Mode::Following, "at x {x}");
+        }
+        assert_eq!(sw.bias_suspected(), rate.abs() > sw.config().bias_suspect_rad_per_m);
+        t += 0.2;
+        sw.set_time(t);
+        pose = pose.compose(&Pose2::new(0.1, 0.0, 0.0));
+        let g = sw.update(&pose, Some(&Detection::empty(t, RowStatus::EndOfRow)));
+        assert_eq!(g.mode, Mode::ClearingRowEnd);
+        (sw, pose, t)
+    }
+
+    #[test]
+    fn rows_turning_in_odom_make_the_robot_stand_at_the_row_end_for_the_dwell() {
+        // 0.04 rad/m: a 0.02 rad/s gyro bias error at 0.5 m/s.
+        let (mut sw, pose, mut t) = follow_turning_rows(0.04);
+        // Braking: no cruise speed, but the MPC still steers the robot to a stop.
+        t += 0.05;
+        sw.set_time(t);
+        let pose = pose.compose(&Pose2::new(0.02, 0.0, 0.0));
+        let g = sw.update(&pose, None);
+        assert!(g.speed_mps == 0.0 && !g.hold, "{g:?}");
+        // Standing still from the first update that did not move it, for `bias_dwell_s` (1.5 s).
+        let mut held_s = 0.0_f64;
+        loop {
+            t += 0.05;
+            sw.set_time(t);
+            let g = sw.update(&pose, None);
+            if !g.hold {
+                assert!(g.speed_mps > 0.0 && g.mode == Mode::ClearingRowEnd, "{g:?}");
+                break;
+            }
+            held_s += 0.05;
+            assert!(held_s < 3.0, "held too long");
+        }
+        // Stamps every 0.05 s: the stand ends on the first update at least 1.5 s after it began.
+        assert!((held_s - 1.55).abs() < 0.051, "held {held_s} s");
+    }
+
+    #[test]
+    fn straight_rows_in_odom_do_not_stop_the_robot_at_the_row_end() {
+        // 0.005 rad/m: the soak's curved rows bend by up to 0.004 rad/m.
+        let (mut sw, pose, t) = follow_turning_rows(0.005);
+        sw.set_time(t + 0.05);
+        let g = sw.update(&pose, None);
+        assert!(g.speed_mps > 0.0 && !g.hold, "{g:?}");
+    }
+
+    #[test]
+    fn without_stamps_the_robot_never_stands_at_the_row_end() {
+        let (mut sw, pose, _) = follow_turning_rows(0.04);
+        sw.set_time(f64::NAN);
+        let g = sw.update(&pose, None);
+        assert!(g.speed_mps > 0.0 && !g.hold, "{g:?}");
+    }
+
     fn approach_end(cfg: LaneSwitchConfig, centroids: &[[f64; 2]], to_x: f64) -> (LaneSwitcher, f64) {
         let mut sw = LaneSwitcher::new(cfg, ReferenceConfig::default()).unwrap();
         let ended = |t: f64, ahead: f64| Detection { row_end_ahead_m: Some(ahead), ..rows(t, 0.0) };
