@@ -150,6 +150,14 @@ pub struct DetectorConfig {
     /// none; beyond it the shear is shrunk by `d²/k` (continuous), m per metre driven. Default 0.025
     /// (measured: on fields without a slide the fitted shear stays within ±0.021).
     pub shear_deadband_per_m: f64,
+    /// Default mode: distance driven over which the slide test pools its evidence, m (see
+    /// `perception::lanes`, the slide test: the map's centroids still in view are compared with the
+    /// newest scan's rows, and a shear that the last `shear_window_m` all agree on replaces the fitted,
+    /// shrunk one). 0 turns the test off. Default 0.5 (measured, see docs/faults.md).
+    pub shear_window_m: f64,
+    /// Default mode: least shear the slide test takes for a slide, m per metre driven. Default 0.04
+    /// (the soak's weakest slides, 0.04 m/s at 0.5 m/s, are 0.08).
+    pub shear_test_min_per_m: f64,
 }
 
 impl Default for DetectorConfig {
@@ -195,6 +203,8 @@ impl Default for DetectorConfig {
             shear_prior_m2: 5.0,
             shear_max_per_m: 0.2,
             shear_deadband_per_m: 0.025,
+            shear_window_m: 0.5,
+            shear_test_min_per_m: 0.04,
         }
     }
 }
@@ -257,6 +267,8 @@ impl DetectorConfig {
         check_range("detector.shear_prior_m2", self.shear_prior_m2, 1e-3, 1e9)?;
         check_range("detector.shear_max_per_m", self.shear_max_per_m, 0.0, 1.0)?;
         check_range("detector.shear_deadband_per_m", self.shear_deadband_per_m, 0.0, 1.0)?;
+        check_range("detector.shear_window_m", self.shear_window_m, 0.0, 10.0)?;
+        check_range("detector.shear_test_min_per_m", self.shear_test_min_per_m, 0.0, 1.0)?;
         Ok(())
     }
 }
