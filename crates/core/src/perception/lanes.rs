@@ -1340,6 +1340,16 @@ mod tests {
     /// while the robot slides `slide_per_m` to the left per metre unseen by the odometry (its pose
     /// stays on y = 0). Returns the last lane, the shear fitted and the robot's true lateral offset.
     fn drive_with_slide(slide_per_m: f64, config: &DetectorConfig) -> (Lane, f64, f64) {
+        let (lane, shear, y_true, _) = drive_with_slide_test(slide_per_m, config);
+        (lane, shear, y_true)
+    }
+
+    /// [`drive_with_slide`], also returning the slide test's verdict at each scan: `(x, found)`.
+    fn drive_with_slide_test(
+        slide_per_m: f64,
+        config: &DetectorConfig,
+    ) -> (Lane, f64, f64, Vec<(f64, Option<f64>)>) {
+        let mut verdicts = Vec::new();
         let mut lanes = Lanes::new(config);
         let mut map = CentroidMap::new(config.map_capacity);
         let mut centroids = Vec::new();
@@ -1353,8 +1363,42 @@ mod tests {
             let odom = Pose2::new(x, 0.0, 0.0);
             let out = lanes.step(&pts, &pts, &odom, 0.1 * k as f64, config, &mut map, &mut centroids);
             last = out.lane.or(last);
+            verdicts.push((x, lanes.slide_per_m()));
         }
-        (last.unwrap(), lanes.shear_per_m, y_true)
+        (last.unwrap(), lanes.shear_per_m, y_true, verdicts)
+    }
+
+    #[test]
+    fn the_slide_test_finds_a_slide_within_its_window_and_measures_it() {
+        // A slide of 0.1 m per metre from the start: the test has pooled half its 0.5 m window after
+        // 0.25 m plus the first stored ages; it declares the slide by 0.6 m driven and, from 1 m on,
+        // measures it within 0.02 m/m at every scan.
+        let (_, _, _, verdicts) = drive_with_slide_test(0.1, &DetectorConfig::default());
+        let first = verdicts.iter().find(|(_, k)| k.is_some()).map(|(x, _)| *x);
+        assert!(first.is_some_and(|x| x <= 0.6), "{verdicts:?}");
+        for (x, k) in verdicts.iter().filter(|(x, _)| *x >= 1.0) {
+            assert!(k.is_some_and(|k| (k - 0.1).abs() < 0.02), "{x}: {k:?}");
+        }
+    }
+
+    #[test]
+    fn the_slide_test_finds_no_slide_where_there_is_none() {
+        let (_, _, _, verdicts) = drive_with_slide_test(0.0, &DetectorConfig::default());
+        assert!(verdicts.iter().all(|(_, k)| k.is_none()), "{verdicts:?}");
+    }
+
+    #[test]
+    fn the_slide_test_ignores_a_slide_under_its_threshold() {
+        // 0.02 m/m, half the 0.04 m/m the test takes for a slide.
+        let (_, _, _, verdicts) = drive_with_slide_test(0.02, &DetectorConfig::default());
+        assert!(verdicts.iter().all(|(_, k)| k.is_none()), "{verdicts:?}");
+    }
+
+    #[test]
+    fn a_zero_window_turns_the_slide_test_off() {
+        let cfg = DetectorConfig { shear_window_m: 0.0, ..DetectorConfig::default() };
+        let (_, _, _, verdicts) = drive_with_slide_test(0.1, &cfg);
+        assert!(verdicts.iter().all(|(_, k)| k.is_none()), "{verdicts:?}");
     }
 
     #[test]
