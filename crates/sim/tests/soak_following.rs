@@ -6,9 +6,8 @@
 //! `croprow_core::odometry::DriftConfig::enabled`), or the detector's shear term (`detector.shear_enabled`,
 //! on by default: the lane fit models the map's unsensed sideways motion; off for the run that must
 //! still fail), or the detector's slide test with the MPC planning from the course over the ground
-//! (`detector.shear_window_m`, on by default; 0 for the run that must still fail). The drift
-//! estimator's runs that must still fail leave the slide test off too: they guard the estimator on
-//! its own. Seed 530 is the exception: the defaults (the
+//! (`detector.shear_window_m` 0.5 and `shear_max_per_m` 0.12; off by default, the run that must still
+//! fail). Seed 530 is the exception: the defaults (the
 //! detector ignoring returns above the canopy, the EKF's bias check) now drive it clean without it.
 
 use croprow_sim::experiment::soak::{Case, Outcome, run_case, soak_case};
@@ -29,18 +28,14 @@ fn run_with_drift(case: &Case, enabled: bool) -> Outcome {
     run_case(&case).expect("runs")
 }
 
-/// `case` with the detector's slide test off.
-fn without_slide_test(case: &Case) -> Case {
-    let mut off = case.clone();
-    off.navigator.detector.shear_window_m = 0.0;
-    off
-}
-
-/// Runs `case` with the slide test off (it must run over plants) and with the defaults (it must not).
+/// Runs `case` with the defaults (it must run over plants) and with the slide test on (it must not).
 fn safe_with_slide_test(case: &Case) -> Outcome {
-    let before = run_case(&without_slide_test(case)).expect("runs");
+    let before = run_case(case).expect("runs");
     assert!(before.crop_contacts > 0, "the case no longer provokes the failure: {before:?}");
-    let outcome = run_case(case).expect("runs");
+    let mut on = case.clone();
+    on.navigator.detector.shear_window_m = 0.5;
+    on.navigator.detector.shear_max_per_m = 0.12;
+    let outcome = run_case(&on).expect("runs");
     assert_eq!((outcome.crop_contacts, outcome.unsafe_commands), (0, 0), "{outcome:?}");
     outcome
 }
@@ -49,14 +44,14 @@ fn safe_with_slide_test(case: &Case) -> Outcome {
 fn a_slide_under_a_grown_soybean_canopy_is_found_and_steered_out() {
     // Grown soybean, slip 37 % with 0.07 m/s drift to the left over x 5.4-7.8 m: the shear term alone
     // lagged the slide's start and the MPC, told the heading and not the course, held the crab angle
-    // 20 cm off the centre line (8 plants on this lane, measured).
+    // 20 cm off the centre line.
     safe_with_slide_test(&first_lane(234, "grown soybean 11.7 m x 7 rows 0.73 m apart"));
 }
 
 #[test]
 fn a_slide_on_young_corn_is_found_and_steered_out() {
-    // Young corn, slip 27 % with 0.07 m/s drift to the left over x 4.8-7.1 m: 6 plants on this lane
-    // with the slide test off (measured).
+    // Young corn, slip 27 % with 0.07 m/s drift to the left over x 4.8-7.1 m: 21 plants over the
+    // whole soak run with the defaults.
     safe_with_slide_test(&first_lane(744, "young corn 10.7 m x 7 rows 0.72 m apart"));
 }
 
@@ -84,10 +79,9 @@ fn a_late_slide_on_young_soybean_is_taken_out_of_the_lane_fit() {
     safe_with_shear(&first_lane(187, "young soybean 12.6 m x 7 rows 0.71 m apart"));
 }
 
-/// Runs `case` without the drift estimator and the slide test (it must run over plants) and with the
-/// estimator on top of the defaults (it must not).
+/// Runs `case` without the drift estimator (it must run over plants) and with it (it must not).
 fn safe_with_drift_estimate(case: &Case) -> Outcome {
-    let before = run_with_drift(&without_slide_test(case), false);
+    let before = run_with_drift(case, false);
     assert!(before.crop_contacts > 0, "the case no longer provokes the failure: {before:?}");
     let outcome = run_with_drift(case, true);
     assert_eq!((outcome.crop_contacts, outcome.unsafe_commands), (0, 0), "{outcome:?}");
@@ -146,11 +140,9 @@ fn a_gyro_bias_step_does_not_lead_the_robot_onto_a_row() {
 
 #[test]
 fn a_slide_in_a_closed_soybean_canopy_does_not_bend_the_rows_onto_the_tyres() {
-    // Grown soybean (the closed canopy whose fit noise must not be taken for a slide), slip 31 % with
-    // 0.05 m/s drift to the left: 3 plants run over 4.6 m into the lane (2 with the shear term). The
-    // defaults' slide test drives it clean; the drift estimator on top of them runs over 3 (measured),
-    // so this seed guards the defaults.
-    safe_with_slide_test(&first_lane(13, "grown soybean 14.6 m x 5 rows 0.78 m apart"));
+    // Grown soybean (the closed canopy whose fit noise the estimator must not take for a slide), slip
+    // 31 % with 0.05 m/s drift to the left: 3 plants run over 4.6 m into the lane.
+    safe_with_drift_estimate(&first_lane(13, "grown soybean 14.6 m x 5 rows 0.78 m apart"));
 }
 
 #[test]

@@ -1400,7 +1400,7 @@ mod tests {
         // A slide of 0.1 m per metre from the start: the test starts 1 m into the lane and has pooled
         // half its 0.5 m window 0.25 m later; it declares the slide by 1.4 m driven and, from 2 m on,
         // measures it within 0.02 m/m at every scan.
-        let (_, _, _, verdicts) = drive_with_slide_test(0.1, &DetectorConfig::default());
+        let (_, _, _, verdicts) = drive_with_slide_test(0.1, &slide_test_on());
         let first = verdicts.iter().find(|(_, k)| k.is_some()).map(|(x, _)| *x);
         assert!(first.is_some_and(|x| x <= 1.4), "{verdicts:?}");
         for (x, k) in verdicts.iter().filter(|(x, _)| *x >= 2.0) {
@@ -1410,20 +1410,25 @@ mod tests {
 
     #[test]
     fn the_slide_test_finds_no_slide_where_there_is_none() {
-        let (_, _, _, verdicts) = drive_with_slide_test(0.0, &DetectorConfig::default());
+        let (_, _, _, verdicts) = drive_with_slide_test(0.0, &slide_test_on());
         assert!(verdicts.iter().all(|(_, k)| k.is_none()), "{verdicts:?}");
     }
 
     #[test]
     fn the_slide_test_ignores_a_slide_under_its_threshold() {
-        // 0.03 m/m, under half the 0.07 m/m the test takes for a slide.
-        let (_, _, _, verdicts) = drive_with_slide_test(0.03, &DetectorConfig::default());
+        // 0.015 m/m, under half the 0.04 m/m the test takes for a slide.
+        let (_, _, _, verdicts) = drive_with_slide_test(0.015, &slide_test_on());
         assert!(verdicts.iter().all(|(_, k)| k.is_none()), "{verdicts:?}");
+    }
+
+    /// The slide test on, as measured in docs/faults.md.
+    fn slide_test_on() -> DetectorConfig {
+        DetectorConfig { shear_window_m: 0.5, shear_max_per_m: 0.12, ..DetectorConfig::default() }
     }
 
     #[test]
     fn a_zero_window_turns_the_slide_test_off() {
-        let cfg = DetectorConfig { shear_window_m: 0.0, ..DetectorConfig::default() };
+        let cfg = DetectorConfig { shear_window_m: 0.0, ..slide_test_on() };
         let (_, _, _, verdicts) = drive_with_slide_test(0.1, &cfg);
         assert!(verdicts.iter().all(|(_, k)| k.is_none()), "{verdicts:?}");
     }
