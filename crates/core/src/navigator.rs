@@ -30,7 +30,7 @@ use crate::control::mpc::{Mpc, MpcConfig, SolveStatus};
 use crate::control::path::Frenet;
 use crate::control::reference::{ReferenceConfig, centre_line};
 use crate::error::{ConfigError, check_range};
-use crate::geometry::{Mount, Pose2, Twist2};
+use crate::geometry::{Mount, Pose2, Twist2, wrap_angle};
 use crate::odometry::{Drift, DriftConfig, EkfConfig};
 use crate::perception::{Detection, DetectorConfig, RowDetector, RowStatus, Scan};
 
@@ -291,6 +291,20 @@ impl Navigator {
         }
     }
 
+    /// The pose the MPC plans from: while following through a slide the detector found (see
+    /// [`RowDetector::slide_per_m`]), the heading is replaced by the course over the ground, heading +
+    /// atan(slide per metre). The MPC's unicycle moves along its heading; on wet soil the robot moves
+    /// along its course, and a controller told the heading holds the crab angle that cancels the
+    /// slide without ever closing the offset it has built up (issue 6: 20-25 cm off the centre line,
+    /// the rows detected within 1-2 cm). Told the course, it steers until the robot's motion over the
+    /// ground follows the line.
+    fn course(&self, mode: Mode, frenet: Frenet) -> Frenet {
+        match self.detector.slide_per_m().filter(|k| mode == Mode::Following && k.is_finite()) {
+            Some(k) => Frenet { heading_rad: wrap_angle(frenet.heading_rad + k.atan()), ..frenet },
+            None => frenet,
+        }
+    }
+
     fn check(&self, input: &NavInput<'_>) -> Option<InputFault> {
         if !input.stamp_s.is_finite() || self.last_stamp_s.is_some_and(|t| input.stamp_s < t) {
             return Some(InputFault::BadStamp);
@@ -350,7 +364,8 @@ impl Navigator {
         let path = if guidance.mode.is_stopped() || guidance.hold { None } else { self.switcher.path() };
         if let Some(path) = path {
             let frenet = path.project(&odom, self.switcher.progress_m());
-            let sol = self.mpc.solve(&frenet, path, guidance.speed_mps, self.last_cmd, budget);
+            let course = self.course(guidance.mode, frenet);
+            let sol = self.mpc.solve(&course, path, guidance.speed_mps, self.last_cmd, budget);
             out.solve_status = Some(sol.status);
             out.solve_iterations = sol.iterations;
             out.tracking = Some(frenet);

@@ -5,7 +5,9 @@
 //! on, where it must not. The guard is the drift estimator (`drift.enabled`, off by default; see
 //! `croprow_core::odometry::DriftConfig::enabled`), or the detector's shear term (`detector.shear_enabled`,
 //! on by default: the lane fit models the map's unsensed sideways motion; off for the run that must
-//! still fail). Seed 530 is the exception: the defaults (the
+//! still fail), or the detector's slide test with the MPC planning from the course over the ground
+//! (`detector.shear_window_m` 0.5 and `shear_max_per_m` 0.12; off by default, the run that must still
+//! fail). Seed 530 is the exception: the defaults (the
 //! detector ignoring returns above the canopy, the EKF's bias check) now drive it clean without it.
 
 use croprow_sim::experiment::soak::{Case, Outcome, run_case, soak_case};
@@ -24,6 +26,33 @@ fn run_with_drift(case: &Case, enabled: bool) -> Outcome {
     let mut case = case.clone();
     case.navigator.drift.enabled = enabled;
     run_case(&case).expect("runs")
+}
+
+/// Runs `case` with the defaults (it must run over plants) and with the slide test on (it must not).
+fn safe_with_slide_test(case: &Case) -> Outcome {
+    let before = run_case(case).expect("runs");
+    assert!(before.crop_contacts > 0, "the case no longer provokes the failure: {before:?}");
+    let mut on = case.clone();
+    on.navigator.detector.shear_window_m = 0.5;
+    on.navigator.detector.shear_max_per_m = 0.12;
+    let outcome = run_case(&on).expect("runs");
+    assert_eq!((outcome.crop_contacts, outcome.unsafe_commands), (0, 0), "{outcome:?}");
+    outcome
+}
+
+#[test]
+fn a_slide_under_a_grown_soybean_canopy_is_found_and_steered_out() {
+    // Grown soybean, slip 37 % with 0.07 m/s drift to the left over x 5.4-7.8 m: the shear term alone
+    // lagged the slide's start and the MPC, told the heading and not the course, held the crab angle
+    // 20 cm off the centre line.
+    safe_with_slide_test(&first_lane(234, "grown soybean 11.7 m x 7 rows 0.73 m apart"));
+}
+
+#[test]
+fn a_slide_on_young_corn_is_found_and_steered_out() {
+    // Young corn, slip 27 % with 0.07 m/s drift to the left over x 4.8-7.1 m: 21 plants over the
+    // whole soak run with the defaults.
+    safe_with_slide_test(&first_lane(744, "young corn 10.7 m x 7 rows 0.72 m apart"));
 }
 
 /// Runs `case` with the detector's shear term off (it must run over plants) and with the defaults,

@@ -144,7 +144,10 @@ pub struct DetectorConfig {
     /// centroid at 1 m age moved by the shear). Default 5 (measured, see docs/faults.md).
     pub shear_prior_m2: f64,
     /// Default mode: largest shear fitted, m per metre driven; beyond it the shear is held at the bound.
-    /// Default 0.2 (a 0.1 m/s slide at 0.5 m/s is 0.2).
+    /// Default 0.2 (a 0.1 m/s slide at 0.5 m/s is 0.2). With the slide test on, 0.12 (the soak's
+    /// strongest slides, 0.08 m/s at 0.5 m/s with 20-40 % slip, are 0.10-0.13 per metre the wheels
+    /// report): on the soak's 25 slide seeds 0.12 left 136 plants, 0.1 164, 0.15 173, 0.2 324 (the
+    /// slide test's measured shear overshoots on grown soybean; see docs/faults.md).
     pub shear_max_per_m: f64,
     /// Default mode: a fitted shear within this of none is the fit's own noise and bias and is held at
     /// none; beyond it the shear is shrunk by `d²/k` (continuous), m per metre driven. Default 0.025
@@ -182,6 +185,20 @@ pub struct DetectorConfig {
     /// reach 4.0-4.4 m with the default `range_m`; soak seeds 337, 267 stood 1-2 m before a gap across
     /// every row and took headings 10-28° off from the metre before it).
     pub start_min_reach_m: f64,
+    /// Default mode: distance driven over which the slide test pools its evidence, m (see
+    /// `perception::lanes`, the slide test: the map's centroids still in view are compared with the
+    /// newest scan's rows, and a shear that the last `shear_window_m` all agree on replaces the fitted,
+    /// shrunk one, and the MPC plans from the course over the ground). 0 turns the test off. Default 0
+    /// (off); 0.5 with `shear_max_per_m` = 0.12 took the soak's 25 slide seeds from 774 plants to 213,
+    /// but reads the tall weed patch of `fault-weed-patch` as a slide (13.6 cm max cross-track, over
+    /// that lane's 3 cm bound), and a threshold that spares it (0.07) came too late on soak seeds 152
+    /// and 187, which the shear term alone drives clean (see docs/faults.md).
+    pub shear_window_m: f64,
+    /// Default mode: least shear the slide test takes for a slide, m per metre driven. Default 0.04
+    /// (the soak's slides are 0.06-0.13 per metre the wheels report; the tall weed patch of
+    /// `fault-weed-patch` reads as a slide of 0.04-0.06 m/m: 13.6 cm off the line at 0.04, 11 at 0.05,
+    /// 6.9 at 0.06, 4.4 at 0.07 as with the test off).
+    pub shear_test_min_per_m: f64,
 }
 
 impl Default for DetectorConfig {
@@ -233,6 +250,8 @@ impl Default for DetectorConfig {
             start_heading_tolerance_deg: 1.0,
             start_offset_tolerance_m: 0.03,
             start_min_reach_m: 3.0,
+            shear_window_m: 0.0,
+            shear_test_min_per_m: 0.04,
         }
     }
 }
@@ -308,6 +327,8 @@ impl DetectorConfig {
         check_range("detector.start_heading_tolerance_deg", self.start_heading_tolerance_deg, 0.01, 45.0)?;
         check_range("detector.start_offset_tolerance_m", self.start_offset_tolerance_m, 0.001, 1.0)?;
         check_range("detector.start_min_reach_m", self.start_min_reach_m, 0.0, self.range_m + 11.0)?;
+        check_range("detector.shear_window_m", self.shear_window_m, 0.0, 10.0)?;
+        check_range("detector.shear_test_min_per_m", self.shear_test_min_per_m, 0.0, 1.0)?;
         Ok(())
     }
 }

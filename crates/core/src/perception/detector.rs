@@ -279,4 +279,11 @@ impl RowDetector {
     pub fn centroids(&self) -> &[[f64; 2]] {
         &self.centroids
     }
+
+    /// The sideways slide the default pipeline's slide test found at the last scan, m per metre driven,
+    /// positive when the robot slides to its left (`base_link` y) unseen by the odometry; `None` when
+    /// it found none (or in the paper mode). See `perception::lanes`, the slide test.
+    pub fn slide_per_m(&self) -> Option<f64> {
+        self.lanes.slide_per_m()
+    }
 }

@@ -21,6 +21,8 @@
 //! 4. **row end**: the canopy of the lane is declared ended where at least `end_empty_m` of visible ground
 //!    follows the last canopy bin; the end is kept in `odom` and cleared if canopy reappears (a gap).
 
+use std::collections::VecDeque;
+
 use nalgebra::{Matrix3, Matrix4, Matrix5, Vector3, Vector4, Vector5};
 
 use crate::geometry::{Pose2, wrap_angle};
@@ -102,6 +104,27 @@ const PEAK_STEPS: usize = 4;
 const MIN_FRESH_CENTROIDS: usize = 2;
 /// Least total centroid weight (full-weight centroids) for a correction to be accepted.
 const MIN_FIT_WEIGHT: f64 = 3.0;
+/// The slide test (see [`Lanes::observe_slide`]) compares the newest scan with map centroids of the same
+/// stretch stored at most this long ago, m driven: older ones have moved by more than a gate at the
+/// soak's strongest slides (0.16 m/m) and would be gated out one-sidedly.
+const SLIDE_MAX_AGE_M: f64 = 0.8;
+/// Fewest map centroids and least summed weight of this scan's centroids for one comparison.
+const SLIDE_MIN_MAP: usize = 10;
+const SLIDE_MIN_FRESH_WEIGHT: f64 = 3.0;
+/// Fewest comparisons pooled before the slide test may decide, and the most kept (a window of 0.5 m
+/// at 0.5 m/s and 10 Hz holds 10).
+const SLIDE_MIN_SAMPLES: usize = 4;
+const SLIDE_CAPACITY: usize = 64;
+/// Most the robot may have turned over the pooled comparisons for the slide test to declare a slide,
+/// rad: while it swings onto a line (after a lane entry, measured on the full-field demo) the scans'
+/// motion skew and the map's lag differ between fresh and stored centroids and read as a shear. A
+/// slide already declared is kept while the robot turns into it.
+const SLIDE_MAX_TURN_RAD: f64 = 0.05;
+/// Distance driven in a lane before the slide test starts, m: right after a lane entry the map holds
+/// the swing onto the line (measured on the full-field demo: false slides of 0.05-0.3 m/m), and least
+/// distance driven between two comparisons, m (a robot standing or pivoting teaches nothing).
+const SLIDE_MIN_LANE_M: f64 = 1.0;
+const SLIDE_MIN_STEP_M: f64 = 0.02;
 
 /// The row family in `base_link`: centre line `o + a·x + b·x²` and canopy period `s`, m. The canopy
 /// repeats `crests` times per row spacing: 1, or 2 for a grown canopy whose leaves crest either side of
@@ -268,6 +291,13 @@ pub(crate) struct Lanes {
     /// is confirmed (a lane searched again while driving, after the rows were lost, is not held back:
     /// the lane switcher's blind distance already bounds it).
     fresh: bool,
+    /// The slide test's comparisons over the last `shear_window_m`: odometer reading (m), the shear
+    /// they measured (m/m), its weight (inverse variance) and the robot's heading in `odom` (rad).
+    slide: VecDeque<[f64; 4]>,
+    /// The shear the slide test agreed on at the last correction, m/m.
+    slide_found: Option<f64>,
+    /// Odometer reading when the lane was found, m.
+    lane_since_m: f64,
 }
 
 /// A correction's result.
@@ -309,6 +339,9 @@ impl Lanes {
             shear_per_m: 0.0,
             unconfirmed: None,
             fresh: true,
+            slide: VecDeque::with_capacity(SLIDE_CAPACITY),
+            slide_found: None,
+            lane_since_m: 0.0,
         }
     }
 
@@ -321,6 +354,8 @@ impl Lanes {
         self.shear_per_m = 0.0;
         self.unconfirmed = None;
         self.fresh = true;
+        self.slide.clear();
+        self.slide_found = None;
     }
 
     /// One scan: `canopy` and `cropped` points in `base_link`, `odom` its pose at `t_s`.
@@ -343,6 +378,8 @@ impl Lanes {
             self.model = None;
             self.last_key = None;
             self.shear_per_m = 0.0;
+            self.slide.clear();
+            self.slide_found = None;
             map.clear();
         }
         let predicted = match self.model {
@@ -360,6 +397,9 @@ impl Lanes {
             self.shear_per_m = 0.0;
             self.unconfirmed =
                 (self.fresh && config.start_confirmations > 0).then_some((predicted, *odom, 0));
+            self.slide.clear();
+            self.slide_found = None;
+            self.lane_since_m = self.odometer_m;
         }
         self.measure(canopy, cropped, &predicted, config);
         let fresh = self.store_centroids(&predicted, odom, config, map);
@@ -434,6 +474,12 @@ impl Lanes {
         };
         self.measure(canopy, cropped, &predicted, config);
         self.store_centroids(&predicted, odom, config, map)
+    }
+
+    /// The slide the slide test found at the last correction, m per metre driven, `base_link` y
+    /// (positive: the robot slides left, so its map moves left too); see [`Lanes::observe_slide`].
+    pub(crate) fn slide_per_m(&self) -> Option<f64> {
+        self.slide_found
     }
 
     /// The correct stage alone (least squares on the map), for the per-stage benchmark; returns the
@@ -799,6 +845,8 @@ impl Lanes {
         // This scan's centroids, plus the map where this scan does not reach (near and behind the robot,
         // which the tilted sensor no longer sees), in base_link, gathered once for both passes.
         let view_start = self.current.iter().map(|c| c[0]).fold(x_max, f64::min);
+        let slide = self.observe_slide(predicted, odom, config, map, view_start);
+        self.slide_found = slide;
         let (sin, cos) = odom.yaw.sin_cos();
         self.local.clear();
         self.local.extend(self.current.iter().map(|&[x, y, w]| [x, y, w, 0.0]));
@@ -817,7 +865,7 @@ impl Lanes {
         let curvature_weight = if config.fit_curvature { PRIOR_CURVATURE } else { PINNED };
         let b_prior = if config.fit_curvature { predicted.b } else { 0.0 };
         let mut lane = *predicted;
-        let mut shear = self.shear_per_m.clamp(-shear_max, shear_max);
+        let mut shear = slide.unwrap_or(self.shear_per_m).clamp(-shear_max, shear_max);
         let mut support = [0.0; 2];
         let mut far = [0.0f64; 2];
         let crests = predicted.crests as i32;
@@ -894,7 +942,11 @@ impl Lanes {
                 n[(i, i)] += w;
                 r[i] += w * v;
             }
-            let p = if config.shear_enabled {
+            let p = if let Some(k) = slide {
+                // The slide test has found a slide: its shear is measured on the newest scan directly,
+                // not drawn from the map's ages through the heading, and is neither shrunk nor delayed.
+                with_shear(&n, &r, k.clamp(-shear_max, shear_max))?
+            } else if config.shear_enabled {
                 let mut with_prior = n;
                 with_prior[(4, 4)] += config.shear_prior_m2;
                 let free = with_prior.cholesky()?.solve(&r);
@@ -912,6 +964,110 @@ impl Lanes {
             }
         }
         Some(Fit { lane: lane.normalised(), support, far_x_m: far, shear_per_m: shear })
+    }
+
+    /// The slide test: measures the map's shear on the stretch of row this scan sees, and returns the
+    /// shear that every comparison over the last `shear_window_m` driven agrees on, if any.
+    ///
+    /// Map centroids stored up to [`SLIDE_MAX_AGE_M`] of driving ago that lie in this scan's view
+    /// (`x >= view_start`) were measured on the same rows as this scan's own centroids; a slide the
+    /// odometry did not sense has since moved them sideways by the shear times their age. Their lateral
+    /// residuals from `predicted` (less the shear already known), with this scan's centroids at age 0,
+    /// are fitted as `c + e·x + Δk·age`: the offset and heading of `predicted` are absorbed by `c` and `e`,
+    /// so the shear is measured directly, not through the fitted heading as in [`Lanes::correct`]'s
+    /// joint fit, whose prior and deadband make it lag a slide's first metre (issue 6: the soak's slide
+    /// seeds ran over plants 1-2 m into the slide). A slide is declared when the comparisons pooled
+    /// over the window (inverse-variance weights) span at least half of it, their mean is at least
+    /// `shear_test_min_per_m` and each one lies at least half that far on the same side of zero: a sign
+    /// test, so that a field without a slide, whose comparisons scatter about zero, never opens it.
+    /// A slide is declared only while the robot drives straight ([`SLIDE_MAX_TURN_RAD`] over the
+    /// window), and kept while it turns into it; it starts [`SLIDE_MIN_LANE_M`] into a lane and pools
+    /// comparisons at least [`SLIDE_MIN_STEP_M`] of driving apart.
+    fn observe_slide(
+        &mut self,
+        predicted: &Lane,
+        odom: &Pose2,
+        config: &DetectorConfig,
+        map: &CentroidMap,
+        view_start: f64,
+    ) -> Option<f64> {
+        if !config.shear_enabled
+            || config.shear_window_m <= 0.0
+            || self.odometer_m - self.lane_since_m < SLIDE_MIN_LANE_M
+        {
+            self.slide.clear();
+            return None;
+        }
+        if self.slide.back().is_some_and(|e| self.odometer_m - e[0] < SLIDE_MIN_STEP_M) {
+            return self.slide_consensus(config);
+        }
+        let gate = config.gate_fraction * predicted.s;
+        let known = self.shear_per_m;
+        let mut n = Matrix3::<f64>::zeros();
+        let mut v = Vector3::<f64>::zeros();
+        let (mut rss, mut count, mut fresh_w, mut stored) = (0.0, 0usize, 0.0, 0usize);
+        let mut add = |x: f64, y: f64, w: f64, age_m: f64| {
+            let (_, d) = predicted.assign(x, y - known * age_m);
+            if d.abs() > gate {
+                return false;
+            }
+            let phi = Vector3::new(1.0, x, age_m);
+            n += w * phi * phi.transpose();
+            v += w * d * phi;
+            rss += w * d * d;
+            count += 1;
+            true
+        };
+        let x_far = self.current.iter().map(|c| c[0]).fold(f64::NEG_INFINITY, f64::max);
+        for &[x, y, w] in &self.current {
+            if add(x, y, w, 0.0) {
+                fresh_w += w;
+            }
+        }
+        let (sin, cos) = odom.yaw.sin_cos();
+        for p in map.points() {
+            let age_m = self.odometer_m - p[3];
+            if age_m <= 1e-6 || age_m > SLIDE_MAX_AGE_M {
+                continue;
+            }
+            let (dx, dy) = (p[0] - odom.x, p[1] - odom.y);
+            let x = cos * dx + sin * dy;
+            if x >= view_start && x <= x_far && add(x, cos * dy - sin * dx, p[2], age_m) {
+                stored += 1;
+            }
+        }
+        let floor = self.odometer_m - config.shear_window_m;
+        while self.slide.front().is_some_and(|e| e[0] < floor) || self.slide.len() >= SLIDE_CAPACITY {
+            self.slide.pop_front();
+        }
+        if stored >= SLIDE_MIN_MAP && fresh_w >= SLIDE_MIN_FRESH_WEIGHT && count > 3 {
+            let inv = n.try_inverse().filter(|m| m[(2, 2)] > 0.0);
+            if let Some(inv) = inv {
+                let p = inv * v;
+                let variance = (rss - p.dot(&v)).max(0.0) / (count - 3) as f64 * inv[(2, 2)];
+                let k = known + p[2];
+                if k.is_finite() && variance.is_finite() {
+                    self.slide.push_back([self.odometer_m, k, 1.0 / variance.max(1e-12), odom.yaw]);
+                }
+            }
+        }
+        self.slide_consensus(config)
+    }
+
+    /// The shear the slide test's pooled comparisons agree on (see [`Lanes::observe_slide`]).
+    fn slide_consensus(&self, config: &DetectorConfig) -> Option<f64> {
+        let (first, last) = (self.slide.front()?, self.slide.back()?);
+        if self.slide.len() < SLIDE_MIN_SAMPLES || last[0] - first[0] < 0.5 * config.shear_window_m {
+            return None;
+        }
+        let (sw, swk) = self.slide.iter().fold((0.0, 0.0), |(sw, swk), e| (sw + e[2], swk + e[2] * e[1]));
+        let mean = swk / sw;
+        let min = config.shear_test_min_per_m;
+        let agreed = mean.abs() >= min && self.slide.iter().all(|e| e[1] * mean.signum() >= 0.5 * min);
+        let straight = self.slide_found.is_some()
+            || self.slide.iter().all(|e| wrap_angle(e[3] - last[3]).abs() <= SLIDE_MAX_TURN_RAD);
+        let bound = config.shear_max_per_m;
+        (agreed && straight && mean.is_finite()).then_some(mean.clamp(-bound, bound))
     }
 
     /// Locates where the canopy of the lane ends, from this scan's bins.
@@ -1360,6 +1516,16 @@ mod tests {
     /// while the robot slides `slide_per_m` to the left per metre unseen by the odometry (its pose
     /// stays on y = 0). Returns the last lane, the shear fitted and the robot's true lateral offset.
     fn drive_with_slide(slide_per_m: f64, config: &DetectorConfig) -> (Lane, f64, f64) {
+        let (lane, shear, y_true, _) = drive_with_slide_test(slide_per_m, config);
+        (lane, shear, y_true)
+    }
+
+    /// [`drive_with_slide`], also returning the slide test's verdict at each scan: `(x, found)`.
+    fn drive_with_slide_test(
+        slide_per_m: f64,
+        config: &DetectorConfig,
+    ) -> (Lane, f64, f64, Vec<(f64, Option<f64>)>) {
+        let mut verdicts = Vec::new();
         let mut lanes = Lanes::new(config);
         let mut map = CentroidMap::new(config.map_capacity);
         let mut centroids = Vec::new();
@@ -1373,8 +1539,47 @@ mod tests {
             let odom = Pose2::new(x, 0.0, 0.0);
             let out = lanes.step(&pts, &pts, &odom, 0.1 * k as f64, config, &mut map, &mut centroids);
             last = out.lane.or(last);
+            verdicts.push((x, lanes.slide_per_m()));
         }
-        (last.unwrap(), lanes.shear_per_m, y_true)
+        (last.unwrap(), lanes.shear_per_m, y_true, verdicts)
+    }
+
+    #[test]
+    fn the_slide_test_finds_a_slide_within_its_window_and_measures_it() {
+        // A slide of 0.1 m per metre from the start: the test starts 1 m into the lane and has pooled
+        // half its 0.5 m window 0.25 m later; it declares the slide by 1.4 m driven and, from 2 m on,
+        // measures it within 0.02 m/m at every scan.
+        let (_, _, _, verdicts) = drive_with_slide_test(0.1, &slide_test_on());
+        let first = verdicts.iter().find(|(_, k)| k.is_some()).map(|(x, _)| *x);
+        assert!(first.is_some_and(|x| x <= 1.4), "{verdicts:?}");
+        for (x, k) in verdicts.iter().filter(|(x, _)| *x >= 2.0) {
+            assert!(k.is_some_and(|k| (k - 0.1).abs() < 0.02), "{x}: {k:?}");
+        }
+    }
+
+    #[test]
+    fn the_slide_test_finds_no_slide_where_there_is_none() {
+        let (_, _, _, verdicts) = drive_with_slide_test(0.0, &slide_test_on());
+        assert!(verdicts.iter().all(|(_, k)| k.is_none()), "{verdicts:?}");
+    }
+
+    #[test]
+    fn the_slide_test_ignores_a_slide_under_its_threshold() {
+        // 0.015 m/m, under half the 0.04 m/m the test takes for a slide.
+        let (_, _, _, verdicts) = drive_with_slide_test(0.015, &slide_test_on());
+        assert!(verdicts.iter().all(|(_, k)| k.is_none()), "{verdicts:?}");
+    }
+
+    /// The slide test on, as measured in docs/faults.md.
+    fn slide_test_on() -> DetectorConfig {
+        DetectorConfig { shear_window_m: 0.5, shear_max_per_m: 0.12, ..DetectorConfig::default() }
+    }
+
+    #[test]
+    fn a_zero_window_turns_the_slide_test_off() {
+        let cfg = DetectorConfig { shear_window_m: 0.0, ..slide_test_on() };
+        let (_, _, _, verdicts) = drive_with_slide_test(0.1, &cfg);
+        assert!(verdicts.iter().all(|(_, k)| k.is_none()), "{verdicts:?}");
     }
 
     #[test]
