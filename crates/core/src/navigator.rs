@@ -92,6 +92,15 @@ impl NavigatorConfig {
         self.ekf.validate()?;
         self.input.validate()?;
         self.drift.validate()?;
+        if self.detector.planted_spacing_m == 0.0 {
+            // `Navigator::new` hands this spacing to the detector as the planted one.
+            check_range(
+                "lane_switch.row_spacing_m",
+                self.lane_switch.row_spacing_m,
+                self.detector.spacing_min_m,
+                self.detector.spacing_max_m,
+            )?;
+        }
         Ok(())
     }
 }
@@ -452,6 +461,18 @@ mod tests {
         assert_eq!(nav.detector().config().planted_spacing_m, 0.7);
         cfg.detector.planted_spacing_m = 0.9;
         assert_eq!(Navigator::new(cfg).unwrap().detector().config().planted_spacing_m, 0.9);
+    }
+
+    #[test]
+    fn a_lane_spacing_the_detector_cannot_search_is_refused_by_name() {
+        // The config fuzzer found it: rows 3 m apart (or a 0.5 m search limit under 0.75 m rows) passed
+        // validation and then failed building the detector; now `validate` names the field.
+        let mut cfg = NavigatorConfig::default();
+        cfg.lane_switch.row_spacing_m = 3.0;
+        let err = cfg.validate().unwrap_err().to_string();
+        assert!(err.contains("lane_switch.row_spacing_m"), "{err}");
+        cfg.detector.planted_spacing_m = 0.75;
+        assert!(cfg.validate().is_ok(), "a planted spacing of its own frees the lane switcher's");
     }
 
     #[test]
