@@ -92,15 +92,6 @@ impl NavigatorConfig {
         self.ekf.validate()?;
         self.input.validate()?;
         self.drift.validate()?;
-        if self.detector.planted_spacing_m == 0.0 {
-            // `Navigator::new` hands this spacing to the detector as the planted one.
-            check_range(
-                "lane_switch.row_spacing_m",
-                self.lane_switch.row_spacing_m,
-                self.detector.spacing_min_m,
-                self.detector.spacing_max_m,
-            )?;
-        }
         Ok(())
     }
 }
@@ -175,13 +166,8 @@ impl Navigator {
     /// Validates the configuration and builds every stage (all buffers are allocated here).
     pub fn new(cfg: NavigatorConfig) -> Result<Self, ConfigError> {
         cfg.validate()?;
-        let mut detector = cfg.detector.clone();
-        if detector.planted_spacing_m == 0.0 {
-            // The lane switcher's planted spacing tells the detector which lattice is the field's.
-            detector.planted_spacing_m = cfg.lane_switch.row_spacing_m;
-        }
         Ok(Self {
-            detector: RowDetector::new(detector)?,
+            detector: RowDetector::new(cfg.detector.clone())?,
             switcher: LaneSwitcher::new(cfg.lane_switch.clone(), cfg.reference.clone())?,
             mpc: Mpc::new(cfg.mpc.clone())?,
             drift: Drift::new(cfg.drift.clone())?,
@@ -450,29 +436,6 @@ mod tests {
             assert_eq!((d.status, d.left, out.input_fault), (RowStatus::InvalidInput, None, None));
             assert_eq!(out.cmd, Twist2::ZERO);
         }
-    }
-
-    #[test]
-    fn the_detector_learns_the_planted_spacing_from_the_lane_switcher() {
-        // Unset (0): taken from `lane_switch.row_spacing_m`; set: kept.
-        let mut cfg = NavigatorConfig::default();
-        cfg.lane_switch.row_spacing_m = 0.7;
-        let nav = Navigator::new(cfg.clone()).unwrap();
-        assert_eq!(nav.detector().config().planted_spacing_m, 0.7);
-        cfg.detector.planted_spacing_m = 0.9;
-        assert_eq!(Navigator::new(cfg).unwrap().detector().config().planted_spacing_m, 0.9);
-    }
-
-    #[test]
-    fn a_lane_spacing_the_detector_cannot_search_is_refused_by_name() {
-        // The config fuzzer found it: rows 3 m apart (or a 0.5 m search limit under 0.75 m rows) passed
-        // validation and then failed building the detector; now `validate` names the field.
-        let mut cfg = NavigatorConfig::default();
-        cfg.lane_switch.row_spacing_m = 3.0;
-        let err = cfg.validate().unwrap_err().to_string();
-        assert!(err.contains("lane_switch.row_spacing_m"), "{err}");
-        cfg.detector.planted_spacing_m = 0.75;
-        assert!(cfg.validate().is_ok(), "a planted spacing of its own frees the lane switcher's");
     }
 
     #[test]

@@ -790,15 +790,12 @@ mod tests {
 
     #[test]
     fn a_robot_that_sees_no_rows_times_out_at_rest() {
-        // Rows too far apart for the detector's search (spacing 1.5 m max), on a robot told the
-        // usual planted spacing (the field's own 3 m is refused by the navigator's config check).
+        // Rows too far apart for the detector's search (spacing 1.5 m max): it never acquires.
         let mut s = Scenario::builtin("young-corn").unwrap();
         s.field.length_m = 6.0;
         s.field.row_spacing_m = 3.0;
         let cfg = RunConfig { lanes: 1, max_time_s: 5.0, ..RunConfig::default() };
-        let mut nav = sim_navigator();
-        nav.detector.planted_spacing_m = 0.75;
-        let run = run(&s, nav, cfg, |_| {}).unwrap();
+        let run = run(&s, sim_navigator(), cfg, |_| {}).unwrap();
         assert!(run.metrics.timed_out, "{:?}", run.metrics);
         assert!(run.metrics.distance_m < 0.05, "{:?}", run.metrics);
         assert_eq!(run.metrics.command_violations, 0);

@@ -49,8 +49,9 @@ fn half_period_lock_after_a_turn_is_not_entered() {
 fn a_lane_entry_in_grown_corn_does_not_follow_a_doubled_spacing() {
     // Fault-free grown corn 0.74 m apart: after the second turn the search took two crests per row
     // (1.44 m) and the fit settled at 0.91 m, 6° off the rows; the robot followed it across a row
-    // (52 plants). With the planted spacing the mission is done clean.
-    let case = soak_case(75);
+    // (52 plants). With the planted spacing (opt-in) the mission is done clean.
+    let mut case = soak_case(75);
+    case.navigator.detector.planted_spacing_m = case.scenario.field.row_spacing_m;
     assert!(
         case.scenario.summary.starts_with("grown corn 11.8 m x 9 rows 0.74 m"),
         "{}",

@@ -1,23 +1,22 @@
 //! Soak seeds (issue 6) whose row fit was pulled by canopy that is not a row seen through the edge of a
 //! row's gate: tall weed clumps between the rows, and the outer leaves of a field's last row. Each test
 //! replays the seed's case as `soak_case` draws it, faults included, and asserts no crop contact and no
-//! unsafe command; the summary check catches a generator that changed. Seed 50 with every bin kept
-//! touched plants until the planted spacing bounded the lane (`DetectorConfig::planted_spacing_m`); it
-//! is now asserted safe both ways. Guards
+//! unsafe command, and that the same case with every bin kept still touches plants; the summary check
+//! catches a generator that changed. Guards
 //! `DetectorConfig::core_fraction` (the detector leaves out bins whose canopy peaks outside the gate),
 //! opt-in (off by default, see its doc): the guarded run sets it to 0.1.
 
 use croprow_sim::experiment::soak::{Outcome, run_case, soak_case};
 
 /// Runs the soak case of `seed` (whose summary starts with `summary`) once with every bin kept
-/// (`core_fraction` = 0, the default: it must be safe) and once with `core_fraction` = 0.1.
+/// (`core_fraction` = 0, the default: it must touch plants, as it did) and once with `core_fraction` = 0.1.
 fn run_seed(seed: u64, summary: &str) -> Outcome {
     let case = soak_case(seed);
     assert!(case.scenario.summary.starts_with(summary), "{}", case.scenario.summary);
     let mut unguarded = case.clone();
     unguarded.navigator.detector.core_fraction = 0.0;
     let before = run_case(&unguarded).expect("runs");
-    assert_eq!((before.crop_contacts, before.unsafe_commands), (0, 0), "{before:?}");
+    assert!(before.crop_contacts > 0, "the case no longer provokes the failure: {before:?}");
     let mut guarded = case;
     guarded.navigator.detector.core_fraction = 0.1;
     run_case(&guarded).expect("runs")
@@ -44,9 +43,7 @@ fn a_fault_free_grown_soybean_field_edge_is_not_run_over() {
 fn tall_weeds_in_view_after_a_headland_turn_do_not_pull_the_fit() {
     // Young corn with 0.5 m weeds (taller than the crop) over x = 7-9.3 m: re-acquired after the
     // first turn with the patch in view, the fit took the weed clumps reaching into the rows' gates
-    // and turned 6-10° off the rows (6 contacts). Since the planted spacing bounds the lane (the lattice
-    // it followed was 8 % narrower and then wandered), the defaults stop safely (`wrong_lane`, 0
-    // contacts, measured) and the bin test drives the mission clean: both are asserted.
+    // and turned 6-10° off the rows (6 contacts).
     let o = run_seed(50, "young corn 10.2 m x 7 rows 0.78 m");
     assert_eq!((o.crop_contacts, o.unsafe_commands), (0, 0), "{o:?}");
 }
