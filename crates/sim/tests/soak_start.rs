@@ -6,17 +6,21 @@
 use croprow_sim::experiment::soak::{Outcome, run_case, soak_case};
 
 fn run_seed(seed: u64, summary: &str) -> Outcome {
-    let case = soak_case(seed);
-    assert!(case.scenario.summary.starts_with(summary), "{}", case.scenario.summary);
-    run_case(&case).expect("runs")
+    run_seed_with(seed, summary, false)
 }
 
 /// As [`run_seed`], with the detector told the field's planted spacing (`detector.planted_spacing_m`,
 /// opt-in: on by default it cost more plants on the 1000-run soak than it saved, see docs/faults.md).
 fn run_planted(seed: u64, summary: &str) -> Outcome {
+    run_seed_with(seed, summary, true)
+}
+
+fn run_seed_with(seed: u64, summary: &str, planted: bool) -> Outcome {
     let mut case = soak_case(seed);
     assert!(case.scenario.summary.starts_with(summary), "{}", case.scenario.summary);
-    case.navigator.detector.planted_spacing_m = case.scenario.field.row_spacing_m;
+    if planted {
+        case.navigator.detector.planted_spacing_m = case.scenario.field.row_spacing_m;
+    }
     run_case(&case).expect("runs")
 }
 
