@@ -777,29 +777,19 @@ fn tile_order(nx: i32, ny: i32) -> impl Iterator<Item = usize> {
 /// index a primitive has changes, so a ray's answer does not (but for which of two primitives it names
 /// when both are hit at the very same distance).
 fn spatial_order(prims: Vec<Prim>, x0: f32, y0: f32, inv_cell: f32, nx: i32, ny: i32) -> Vec<Prim> {
-    let (bnx, block) = (((nx + BLOCK - 1) / BLOCK) as usize, BLOCK as usize);
+    let (bnx, block) = (i64::from((nx + BLOCK - 1) / BLOCK), i64::from(BLOCK));
     let key = |p: &Prim| {
         let b = p.bounds();
-        // `as` saturates and maps NaN to 0; the `min` keeps a primitive outside the grid at its edge.
-        let i = (((0.5 * (b[0] + b[3]) - x0) * inv_cell).max(0.0) as usize).min((nx - 1) as usize);
-        let j = (((0.5 * (b[1] + b[4]) - y0) * inv_cell).max(0.0) as usize).min((ny - 1) as usize);
+        // `as` saturates and maps NaN to 0; the clamp keeps a primitive outside the grid at its edge.
+        let i =
+            i64::from(((0.5 * (b[0] + b[3]) - x0) * inv_cell).floor().max(0.0) as i32).min(i64::from(nx - 1));
+        let j =
+            i64::from(((0.5 * (b[1] + b[4]) - y0) * inv_cell).floor().max(0.0) as i32).min(i64::from(ny - 1));
         ((j / block) * bnx + i / block) * block * block + (j % block) * block + i % block
     };
-    // A counting sort (stable, linear): a full-size field has a million primitives.
-    let keys: Vec<usize> = prims.iter().map(key).collect();
-    let mut first = vec![0usize; keys.iter().max().map_or(0, |&k| k + 1) + 1];
-    for &k in &keys {
-        first[k + 1] += 1;
-    }
-    for k in 1..first.len() {
-        first[k] += first[k - 1];
-    }
-    let mut order = vec![0usize; prims.len()];
-    for (index, &k) in keys.iter().enumerate() {
-        order[first[k]] = index;
-        first[k] += 1;
-    }
-    order.into_iter().filter_map(|index| prims.get(index).copied()).collect()
+    let mut keyed: Vec<(i64, Prim)> = prims.into_iter().map(|p| (key(&p), p)).collect();
+    keyed.sort_by_key(|&(k, _)| k);
+    keyed.into_iter().map(|(_, p)| p).collect()
 }
 
 /// An upper bound of the relief's slope: the largest gradient sampled every `step` over the field plus
