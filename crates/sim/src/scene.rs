@@ -350,7 +350,6 @@ impl Scene {
             }
         }
         let ground_z = max_z.clone();
-        let prims = spatial_order(prims, x0, y0, inv_cell, nx, ny);
         let range = |b: &[f32; 6]| {
             let i0 = (((b[0] - x0) * inv_cell).floor() as i32).clamp(0, nx - 1);
             let i1 = (((b[3] - x0) * inv_cell).floor() as i32).clamp(0, nx - 1);
@@ -373,29 +372,21 @@ impl Scene {
                 }
             }
         };
-        let mut count = vec![0u32; n_cells];
+        let mut start = vec![0u32; n_cells + 1];
         for p in &prims {
             overlaps(
                 p,
                 Box::new(|c, _, z_hi| {
-                    count[c] += 1;
+                    start[c + 1] += 1;
                     max_z[c] = max_z[c].max(z_hi as f32 + 1e-3);
                 }),
             );
         }
-        // The cells' lists lie in `refs` block by block (`BLOCK` × `BLOCK` cells), not row by row: a
-        // packet's walk crosses cells in both directions, and a block's lists then share cache lines and
-        // pages instead of lying a grid row (~2,000 cells) apart.
-        let mut start = vec![0u32; n_cells];
-        let mut total = 0u32;
-        for c in tile_order(nx, ny) {
-            if let (Some(s), Some(&n)) = (start.get_mut(c), count.get(c)) {
-                *s = total;
-                total += n;
-            }
+        for c in 0..n_cells {
+            start[c + 1] += start[c];
         }
         let mut fill = start.clone();
-        let mut refs = vec![Ref { z_min: 0.0, z_max: 0.0, prim: 0 }; total as usize];
+        let mut refs = vec![Ref { z_min: 0.0, z_max: 0.0, prim: 0 }; start[n_cells] as usize];
         for (k, p) in prims.iter().enumerate() {
             overlaps(
                 p,
@@ -410,14 +401,14 @@ impl Scene {
         // Per cell, highest top first: a ray coming down meets a cell's primitives only down to the first
         // one whose top lies under the ray. Ties by index keep the build deterministic.
         for c in 0..n_cells {
-            if let Some(cell) = refs.get_mut(start[c] as usize..(start[c] + count[c]) as usize) {
+            if let Some(cell) = refs.get_mut(start[c] as usize..start[c + 1] as usize) {
                 cell.sort_unstable_by(|a, b| b.z_max.total_cmp(&a.z_max).then(a.prim.cmp(&b.prim)));
             }
         }
         let top_z = max_z.iter().copied().fold(relief.amplitude_m() as f32, f32::max) + 0.01;
         let bottom_z = -(relief.amplitude_m() as f32) - 0.01;
         let cells = (0..n_cells)
-            .map(|c| CellInfo { ground_z: ground_z[c], start: start[c], end: start[c] + count[c] })
+            .map(|c| CellInfo { ground_z: ground_z[c], start: start[c], end: start[c + 1] })
             .collect();
         let relief_slope = slope_bound(&relief, x_min, x_max, y_min, y_max, cell_m);
         let (bnx, bny) = ((nx + BLOCK - 1) / BLOCK, (ny + BLOCK - 1) / BLOCK);
@@ -755,41 +746,6 @@ impl Scene {
         }
         None
     }
-}
-
-/// The cells of an `nx` × `ny` grid (row-major indices) block by block: blocks of `BLOCK` × `BLOCK`
-/// cells in row-major order, each block's cells row by row.
-fn tile_order(nx: i32, ny: i32) -> impl Iterator<Item = usize> {
-    let (bnx, bny) = ((nx + BLOCK - 1) / BLOCK, (ny + BLOCK - 1) / BLOCK);
-    (0..bny).flat_map(move |bj| {
-        (0..bnx).flat_map(move |bi| {
-            let (j0, i0) = (bj * BLOCK, bi * BLOCK);
-            (j0..(j0 + BLOCK).min(ny))
-                .flat_map(move |j| (i0..(i0 + BLOCK).min(nx)).map(move |i| (j * nx + i) as usize))
-        })
-    })
-}
-
-/// `prims` sorted by the block (as [`tile_order`]) and then the cell holding the centre of their bounds,
-/// ties in their given order: a cell's primitives (leaves of several plants, a plant's leaves reaching
-/// over several cells) then lie together in memory, as the cells' lists do, instead of plant by plant
-/// and row after row (a grown-corn field's 40 MB of primitives, its rows 2.5 MB apart). Only which
-/// index a primitive has changes, so a ray's answer does not (but for which of two primitives it names
-/// when both are hit at the very same distance).
-fn spatial_order(prims: Vec<Prim>, x0: f32, y0: f32, inv_cell: f32, nx: i32, ny: i32) -> Vec<Prim> {
-    let (bnx, block) = (i64::from((nx + BLOCK - 1) / BLOCK), i64::from(BLOCK));
-    let key = |p: &Prim| {
-        let b = p.bounds();
-        // `as` saturates and maps NaN to 0; the clamp keeps a primitive outside the grid at its edge.
-        let i =
-            i64::from(((0.5 * (b[0] + b[3]) - x0) * inv_cell).floor().max(0.0) as i32).min(i64::from(nx - 1));
-        let j =
-            i64::from(((0.5 * (b[1] + b[4]) - y0) * inv_cell).floor().max(0.0) as i32).min(i64::from(ny - 1));
-        ((j / block) * bnx + i / block) * block * block + (j % block) * block + i % block
-    };
-    let mut keyed: Vec<(i64, Prim)> = prims.into_iter().map(|p| (key(&p), p)).collect();
-    keyed.sort_by_key(|&(k, _)| k);
-    keyed.into_iter().map(|(_, p)| p).collect()
 }
 
 /// An upper bound of the relief's slope: the largest gradient sampled every `step` over the field plus
