@@ -144,6 +144,40 @@
 //! times in eight; no CPU time gain within the noise, 14 % more memory); settling rising rays before
 //! the square root in `packet_ray` (+0.2 %); RANSAC scoring that stops once a hypothesis cannot win
 //! (levelling +1 %: grown corn's hypotheses are all poor, so it never stops early).
+//!
+//! Data layout (branch `simperf6`): nothing kept. Per revolution (callgrind on
+//! `examples/raycast_cost.rs`, 3 revolutions, `--cache-sim=yes --LL=2097152,16,64`, casting only) the
+//! caster costs young corn 13.9M instructions, 37.0k D1 and 12.2k LL read misses; grown corn 16.1M,
+//! 76.7k, 34.3k; young soybean 15.5M, 59.6k, 28.7k; grown soybean 18.4M, 122.3k, 58.8k. In grown corn
+//! the misses fall on a cell's first reference (24 %), the primitive (18 %), its footprint (14 %),
+//! the cell's record (5 %), its height (4 %) and the LiDAR's ray table (7 %). Each change below left
+//! the scans bit for bit the same (scan hashes of all five scenarios; the first also 20 m
+//! `croprow simulate` runs of grown corn and young soybean byte for byte) and none moved the CPU time
+//! (medians of 8 runs alternating the binaries, load average 9-13 on the 2 cores, so only differences
+//! over ~5 % would show):
+//! - primitives stored in grid order (by the 4 × 4-cell block, then the cell, of their centre) and the
+//!   cells' lists laid out block by block: grown corn D1 misses -7 %, LL +2 %; young corn D1 +4 %, LL
+//!   +20 %; young soybean D1 +2 %, LL +10 %; grown soybean D1 -3 %, LL +1.5 %. Blocks alone, lists
+//!   alone and order alone were no better. CPU per simulated 0.1 s of the closed loop
+//!   (`loop_cost.rs`, grown / young corn) 3.27 / 2.65 ms before, 3.31 / 2.62 after; `croprow bench
+//!   --json` `sim_realtime_factor` (wall time) 18.6 before, 16.9 after;
+//! - then 8-byte cell references (heights in quarter millimetres, rounded outwards, so a superset of
+//!   the primitives is tested): grown corn D1 misses -11 %, LL -18 %, but +8 % instructions (up to 4 %
+//!   more tests, and the reference loop spills registers); CPU time unchanged;
+//! - prefetching the first reference of the next strip's cells (`_mm_prefetch`): unchanged;
+//! - the reference loop's three tests (height, footprint, table) as one branch: unchanged.
+//!
+//! What the profile says instead: callgrind's branch model (`--branch-sim=yes`) counts 136k
+//! mispredicted conditional branches in a grown-corn revolution (of 2.0M; young corn 120k of 1.7M,
+//! young soybean 126k of 2.0M): a reference's height tests
+//! (11 and 15 % of their runs), its footprint test (12 %), the table (41 %), the cell's height (17 %).
+//! At ~15
+//! cycles each that is ~2M cycles, as much as the cache misses; the samples `perf` puts on the
+//! loads after those branches are largely these. Sifting each cell's list without a branch per
+//! reference (the passing indices written to a small array, then tested in order) cut them by 27 %
+//! but cost 19 % more instructions (28 instead of 12 a reference): CPU time unchanged. The caster
+//! runs at about 2 instructions a cycle: the 1 ms target needs about 4M instructions a revolution,
+//! i.e. a different algorithm (fewer references scanned per ray), not a layout or a branch shape.
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use croprow_core::Pose2;

@@ -9,6 +9,9 @@
 //!     target/release/examples/raycast_cost 3 grown-corn      # Collected / 3 = instructions per revolution
 //! ```
 //!
+//! Add `--cache-sim=yes --LL=2097152,16,64` for cache misses and `--branch-sim=yes` for mispredicted
+//! branches (`callgrind_annotate --auto=yes --show=Ir,D1mr,DLmr,Bcm` puts them on source lines).
+//!
 //! The casting is spread over `cast_packet` and `Scene::cast`/`cast_from` (rays packets leave alone):
 //! collect from `Lidar::cast_columns` down as above and read inclusive costs with
 //! `callgrind_annotate --inclusive=yes`.
