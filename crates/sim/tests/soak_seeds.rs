@@ -45,18 +45,30 @@ fn half_period_lock_after_a_turn_is_not_entered() {
     assert!(outcome.lanes_completed >= 2, "the first two lanes are still driven: {outcome:?}");
 }
 
+/// Runs the soak case of `seed` (whose summary starts with `summary`) as drawn, with the detector told
+/// the field's planted spacing (`detector.planted_spacing_m`, opt-in): it must drive `lanes` lanes
+/// and touch no plant.
+fn planted_run(seed: u64, summary: &str, lanes: u32) {
+    let mut case = soak_case(seed);
+    assert!(case.scenario.summary.starts_with(summary), "{}", case.scenario.summary);
+    case.navigator.detector.planted_spacing_m = case.scenario.field.row_spacing_m;
+    let o = run_case(&case).expect("runs");
+    assert_eq!((o.crop_contacts, o.unsafe_commands, o.lanes_completed), (0, 0, lanes), "{o:?}");
+}
+
 #[test]
 fn a_lane_entry_in_grown_corn_does_not_follow_a_doubled_spacing() {
     // Fault-free grown corn 0.74 m apart: after the second turn the search took two crests per row
     // (1.44 m) and the fit settled at 0.91 m, 6° off the rows; the robot followed it across a row
     // (52 plants). With the planted spacing (opt-in) the mission is done clean.
-    let mut case = soak_case(75);
-    case.navigator.detector.planted_spacing_m = case.scenario.field.row_spacing_m;
-    assert!(
-        case.scenario.summary.starts_with("grown corn 11.8 m x 9 rows 0.74 m"),
-        "{}",
-        case.scenario.summary
-    );
-    let o = run_case(&case).expect("runs");
-    assert_eq!((o.crop_contacts, o.unsafe_commands, o.lanes_completed), (0, 0, 3), "{o:?}");
+    planted_run(75, "grown corn 11.8 m x 9 rows 0.74 m", 3);
+}
+
+#[test]
+fn a_lane_entry_in_grown_soybean_takes_the_inter_row_not_the_row() {
+    // Fault-free grown soybean 0.80 m apart, with the planted spacing: the robot re-entered 14 cm off
+    // its lane centre, and of the two gaps between the canopy's two crests per row the search took
+    // the nearer one, the dip over a row; the robot followed it (117 plants). The ground, showing
+    // through in the inter-row, now settles which gap is the lane's.
+    planted_run(125, "grown soybean 10.4 m x 6 rows 0.80 m", 2);
 }

@@ -160,8 +160,9 @@ pub struct DetectorConfig {
     /// Default 0, opt-in: on the 17 soak seeds it was built for (a grown canopy's ground read as
     /// repeating every second row gave a doubled spacing: 439, 982, 75) it took 236 plants to 20, but
     /// on the 1000-run soak it gave 14 runs new contacts (317 plants, 4 of them fault-free grown
-    /// fields re-entered on the density's lattice: seed 125, 117 plants) against 14 fixed (217 plants);
-    /// see docs/faults.md, Start-up.
+    /// fields re-entered on the density's lattice: seed 125, 117 plants) against 14 fixed (217 plants).
+    /// Since a two-crest lane's centre is the gap where the ground shows (125: 0), the 40 seeds it changed
+    /// are at 87 plants in 8 runs (611: 56) against 178 in 16 without it; see docs/faults.md, Start-up.
     pub planted_spacing_m: f64,
     /// Default mode: largest relative difference between a lane's spacing and `planted_spacing_m` for the
     /// lane to be believed (unused while the planted spacing is unknown). Default 0.12: tracked lanes

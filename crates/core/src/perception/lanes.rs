@@ -71,6 +71,10 @@ const PINNED: f64 = 1e12;
 /// accepted as a row pattern.
 const MIN_SEARCH_POINTS: usize = 30;
 const MIN_PERIODICITY: f64 = 0.15;
+/// Distance from the robot, in canopy periods, within which the gap between a two-crest canopy's
+/// crests nearest it is its lane centre without asking the ground (see [`Lanes::two_crest_centre`]):
+/// a quarter period, an eighth of a spacing, 9 cm at 0.75 m rows, beyond the soak's ±6 cm starts.
+const NEAR_GAP: f64 = 0.25;
 /// Fewest ground returns (cropped points below the canopy plane) for the start-up search to consult
 /// them, and the ratio of their autocorrelation at one spacing to that at two spacings below which the
 /// ground is taken to repeat only every second canopy period (see [`Lanes::search`]).
@@ -541,7 +545,9 @@ impl Lanes {
             .then(|| envelope_spacing(&self.envelope, &self.filled, config))
             .flatten();
         let lane = match (density, crest) {
-            _ if config.planted_spacing_m > 0.0 => self.nearest_planted(a, density, crest, config)?,
+            _ if config.planted_spacing_m > 0.0 => {
+                self.nearest_planted(a, density, crest, canopy, cropped, config)?
+            }
             (Some(s), Some(e)) if (e - s).abs() > PERIODS_AGREE * s => {
                 // The density and the envelope disagree: the envelope's crests are the plants' tops,
                 // one per row, wherever the leaves spread (see the method's docs).
@@ -578,18 +584,28 @@ impl Lanes {
     /// one. The ground's period is not consulted: it only breaks the one-or-two-crests tie, which the
     /// planted spacing breaks for sure (in grown corn the ground, seen mostly in the robot's own
     /// inter-row, read as repeating every second row and doubled the spacing: soak seeds 439, 75).
+    /// With two crests per row, the gaps between crests alternate between the inter-rows and the rows
+    /// themselves (leaves arching either side of a row dip over its stems): see
+    /// [`Lanes::two_crest_centre`] for which is the lane's.
     fn nearest_planted(
-        &self,
+        &mut self,
         a: f64,
         density: Option<f64>,
         crest: Option<f64>,
+        canopy: &[[f32; 3]],
+        cropped: &[[f32; 3]],
         config: &DetectorConfig,
     ) -> Option<Lane> {
-        let from_density = density.into_iter().flat_map(|s| {
+        let off = |spacing_m: f64| (spacing_m - config.planted_spacing_m).abs();
+        let from_density = density.map(|s| {
             // The lane centre lies between two canopy crests; of those gaps the one nearest the robot.
             let o =
                 Lane { o: circular_mean(&self.hist, s) + 0.5 * s, a, b: 0.0, s, crests: 1.0 }.normalised().o;
-            [1.0, 2.0].map(|crests| Lane { o, a, b: 0.0, s, crests })
+            if off(2.0 * s) < off(s) {
+                Lane { o: self.two_crest_centre(o, s, a, canopy, cropped), a, b: 0.0, s, crests: 2.0 }
+            } else {
+                Lane { o, a, b: 0.0, s, crests: 1.0 }
+            }
         });
         let from_envelope = crest.map(|e| Lane {
             o: circular_mean(&self.envelope, e) + 0.5 * e,
@@ -598,8 +614,33 @@ impl Lanes {
             s: e,
             crests: 1.0,
         });
-        let off = |l: &Lane| (l.spacing_m() - config.planted_spacing_m).abs();
-        from_density.chain(from_envelope).min_by(|l, m| off(l).total_cmp(&off(m)))
+        from_density
+            .into_iter()
+            .chain(from_envelope)
+            .min_by(|l, m| off(l.spacing_m()).total_cmp(&off(m.spacing_m())))
+    }
+
+    /// The lane centre of a canopy with two crests per row spacing (canopy period `s`, heading slope
+    /// `a`), from the gap `o` between crests nearest the robot: the gaps alternate between the
+    /// inter-rows and the rows themselves (leaves arching either side of a row dip over its stems). A
+    /// robot within [`NEAR_GAP`] periods of `o` stands in that gap's lane (the soak starts within 6 cm of
+    /// the centre line). Farther off, which gap is nearer is a coin toss (soak seed 125 re-entered 14 cm
+    /// off its lane centre, took the gap over the row half a spacing off and ran over 117 plants), so
+    /// the ground settles it: of `o` and `o + s`, the gap nearer where its share of the returns peaks
+    /// once per spacing (in the simulated grown canopies the ground shows through in the inter-row).
+    /// With too few ground returns to say, `o`.
+    fn two_crest_centre(&mut self, o: f64, s: f64, a: f64, canopy: &[[f32; 3]], cropped: &[[f32; 3]]) -> f64 {
+        let spacing = 2.0 * s;
+        if o.abs() <= NEAR_GAP * s || self.fill_ground(canopy, cropped, a) < MIN_GROUND_POINTS {
+            return o;
+        }
+        let centre = circular_mean(&self.ground, spacing);
+        // Distance on the circle of one spacing.
+        let apart = |y: f64| {
+            let d = (y - centre).rem_euclid(spacing);
+            d.min(spacing - d)
+        };
+        if apart(o + s) < apart(o) { o + s } else { o }
     }
 
     /// The canopy's upper envelope across the rows along heading slope `a`: per lateral bin, the mean
@@ -1285,6 +1326,19 @@ mod tests {
     /// inter-row), so the canopy alone repeats every 0.375 m; low leaf tips meet over the inter-row and
     /// the ground shows along the row lines only. Returns (canopy, cropped).
     fn two_crest_scan(y0_m: f64) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
+        crests_scan(y0_m, |x, r, canopy, cropped| {
+            canopy.push([x as f32, (r + 0.375) as f32, 0.05]);
+            cropped.push([x as f32, r as f32, -0.4]);
+        })
+    }
+
+    /// Scan slices 1.5-4.5 m ahead (`x`), rows 0.75 m apart at `r` (`base_link` at lateral offset
+    /// `y0_m` from the lane centre), the canopy cresting a quarter spacing either side of each row
+    /// (0.3 m), and what `per_row(x, r, canopy, cropped)` adds. Returns (canopy, cropped ⊇ canopy).
+    fn crests_scan(
+        y0_m: f64,
+        mut per_row: impl FnMut(f64, f64, &mut Vec<[f32; 3]>, &mut Vec<[f32; 3]>),
+    ) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
         let (mut canopy, mut cropped) = (Vec::new(), Vec::new());
         for i in 0..250 {
             let x = 1.5 + 0.012 * i as f64;
@@ -1294,8 +1348,7 @@ mod tests {
                         canopy.push([x as f32, (r + dy + e) as f32, 0.3]);
                     }
                 }
-                canopy.push([x as f32, (r + 0.375) as f32, 0.05]);
-                cropped.push([x as f32, r as f32, -0.4]);
+                per_row(x, r, &mut canopy, &mut cropped);
             }
         }
         cropped.extend_from_slice(&canopy);
@@ -1408,6 +1461,49 @@ mod tests {
         let (canopy, cropped) = two_crest_scan(0.0);
         let lane = Lanes::new(&cfg).search(&canopy, &cropped, &cfg).unwrap();
         assert!((lane.spacing_m() - 0.75).abs() < 0.03 && lane.crests == 2.0, "{lane:?}");
+    }
+
+    /// One scan of a grown canopy, rows 0.75 m apart with the robot `y0_m` left of its lane centre: the
+    /// leaves crest a quarter spacing either side of each row (0.3 m), over a sparse plant top on the row
+    /// (0.34 m, every fourth slice), and with `ground` the ground shows through in the middle of each inter-row.
+    fn grown_scan(y0_m: f64, ground: bool) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
+        let mut slice = 0;
+        crests_scan(y0_m, |x, r, canopy, cropped| {
+            // Six rows per slice: a top on every row of every fourth slice.
+            if slice % 24 < 6 {
+                canopy.push([x as f32, r as f32, 0.34]);
+            }
+            slice += 1;
+            if ground {
+                cropped.extend([[x as f32, (r + 0.375) as f32, -0.4]; 2]);
+            }
+        })
+    }
+
+    /// The lane the search finds in [`grown_scan`] with the robot 0.22 m left of its lane centre,
+    /// planted at 0.75 m: two crests per row (spacing within 3 cm).
+    fn search_grown(ground: bool) -> Lane {
+        let cfg = DetectorConfig { planted_spacing_m: 0.75, ..DetectorConfig::default() };
+        let (canopy, cropped) = grown_scan(0.22, ground);
+        let lane = Lanes::new(&cfg).search(&canopy, &cropped, &cfg).unwrap();
+        assert!(lane.crests == 2.0 && (lane.spacing_m() - 0.75).abs() < 0.03, "{lane:?}");
+        lane
+    }
+
+    #[test]
+    fn a_two_crest_lane_is_centred_where_the_ground_shows() {
+        // The gap between crests nearest the robot is the dip over the row at +0.155 m; the lane
+        // centre is the inter-row at -0.22 m, within 3 cm.
+        let lane = search_grown(true);
+        assert!((lane.o + 0.22).abs() < 0.03, "{lane:?}");
+    }
+
+    #[test]
+    fn a_two_crest_lane_without_ground_in_view_takes_the_nearest_gap() {
+        // No ground return: nothing tells the row's dip from the inter-row, and the gap nearest the
+        // robot is taken (+0.155 m, within 3 cm).
+        let lane = search_grown(false);
+        assert!((lane.o - 0.155).abs() < 0.03, "{lane:?}");
     }
 
     #[test]
