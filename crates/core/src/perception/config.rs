@@ -193,8 +193,9 @@ pub struct DetectorConfig {
     /// (off); 0.5 with `shear_max_per_m` = 0.12 took 25 slide seeds of the soak from 833 plants (25
     /// runs) to 120 (12), but reads the gyro bias step of `fault-gyro-bias-step` as a slide (16.1 cm
     /// max cross-track, over that lane's 15 cm bound), and the tall weed patch of `fault-weed-patch`
-    /// still moves every row alike for a metre (7.3 cm max over four lanes, 4.4 off; see
-    /// docs/faults.md).
+    /// still moves every row alike for a metre (7.3 cm max over four lanes, 4.4 off); on the soak's
+    /// first 200 seeds it halved the plants run over (270 -> 133) but 15 clean seeds got contacts
+    /// (see docs/faults.md).
     pub shear_window_m: f64,
     /// Default mode: least shear the slide test takes for a slide, m per metre driven. Default 0.04
     /// (the soak's slides are 0.06-0.13 per metre the wheels report; the tall weed patch of
