@@ -191,10 +191,12 @@ pub struct DetectorConfig {
     /// `perception::lanes`, the slide test: the map's centroids still in view are compared with the
     /// newest scan's rows, and a shear that the last `shear_window_m` all agree on replaces the fitted,
     /// shrunk one, and the MPC plans from the course over the ground). 0 turns the test off. Default 0
-    /// (off); 0.5 with `shear_max_per_m` = 0.12 took the soak's 25 slide seeds from 774 plants to 213,
-    /// but reads the tall weed patch of `fault-weed-patch` as a slide (13.6 cm max cross-track, over
-    /// that lane's 3 cm bound), and a threshold that spares it (0.07) came too late on soak seeds 152
-    /// and 187, which the shear term alone drives clean (see docs/faults.md).
+    /// (off); 0.5 with `shear_max_per_m` = 0.12 took 25 slide seeds of the soak from 833 plants (25
+    /// runs) to 120 (12), but reads the gyro bias step of `fault-gyro-bias-step` as a slide (16.1 cm
+    /// max cross-track, over that lane's 15 cm bound), and the tall weed patch of `fault-weed-patch`
+    /// still moves every row alike for a metre (7.3 cm max over four lanes, 4.4 off); on the soak's
+    /// first 200 seeds it halved the plants run over (270 -> 133) but 15 clean seeds got contacts
+    /// (see docs/faults.md).
     pub shear_window_m: f64,
     /// Default mode: least shear the slide test takes for a slide, m per metre driven. Default 0.04
     /// (the soak's slides are 0.06-0.13 per metre the wheels report; the tall weed patch of

@@ -115,6 +115,11 @@ const SLIDE_MAX_AGE_M: f64 = 0.8;
 /// Fewest map centroids and least summed weight of this scan's centroids for one comparison.
 const SLIDE_MIN_MAP: usize = 10;
 const SLIDE_MIN_FRESH_WEIGHT: f64 = 3.0;
+/// Fewest centroids of one row for its own shear in a comparison (three unknowns and some to spare),
+/// and the least variance given a row's shear, (m/m)²: a clean synthetic row fits exactly, and one row
+/// must not outweigh the rest of its side without bound.
+const SLIDE_ROW_MIN_CENTROIDS: usize = 6;
+const SLIDE_ROW_MIN_VARIANCE: f64 = 1e-6;
 /// Fewest comparisons pooled before the slide test may decide, and the most kept (a window of 0.5 m
 /// at 0.5 m/s and 10 Hz holds 10).
 const SLIDE_MIN_SAMPLES: usize = 4;
@@ -1044,19 +1049,18 @@ impl Lanes {
         }
         let gate = config.gate_fraction * predicted.s;
         let known = self.shear_per_m;
-        let mut n = Matrix3::<f64>::zeros();
-        let mut v = Vector3::<f64>::zeros();
-        let (mut rss, mut count, mut fresh_w, mut stored) = (0.0, 0usize, 0.0, 0usize);
+        // One fit per row: a slide moves every row alike, a weed clump the centroids of one or two.
+        let mut rows = [RowFit::default(); ROWS];
+        let mut fresh_w = 0.0;
         let mut add = |x: f64, y: f64, w: f64, age_m: f64| {
-            let (_, d) = predicted.assign(x, y - known * age_m);
+            let (j, d) = predicted.assign(x, y - known * age_m);
+            let Some(row) = usize::try_from(j - J_MIN).ok().and_then(|r| rows.get_mut(r)) else {
+                return false;
+            };
             if d.abs() > gate {
                 return false;
             }
-            let phi = Vector3::new(1.0, x, age_m);
-            n += w * phi * phi.transpose();
-            v += w * d * phi;
-            rss += w * d * d;
-            count += 1;
+            row.add(x, d, w, age_m);
             true
         };
         let x_far = self.current.iter().map(|c| c[0]).fold(f64::NEG_INFINITY, f64::max);
@@ -1065,6 +1069,7 @@ impl Lanes {
                 fresh_w += w;
             }
         }
+        let mut stored = 0usize;
         let (sin, cos) = odom.yaw.sin_cos();
         for p in map.points() {
             let age_m = self.odometer_m - p[3];
@@ -1081,15 +1086,13 @@ impl Lanes {
         while self.slide.front().is_some_and(|e| e[0] < floor) || self.slide.len() >= SLIDE_CAPACITY {
             self.slide.pop_front();
         }
-        if stored >= SLIDE_MIN_MAP && fresh_w >= SLIDE_MIN_FRESH_WEIGHT && count > 3 {
-            let inv = n.try_inverse().filter(|m| m[(2, 2)] > 0.0);
-            if let Some(inv) = inv {
-                let p = inv * v;
-                let variance = (rss - p.dot(&v)).max(0.0) / (count - 3) as f64 * inv[(2, 2)];
-                let k = known + p[2];
-                if k.is_finite() && variance.is_finite() {
-                    self.slide.push_back([self.odometer_m, k, 1.0 / variance.max(1e-12), odom.yaw]);
-                }
+        if stored >= SLIDE_MIN_MAP
+            && fresh_w >= SLIDE_MIN_FRESH_WEIGHT
+            && let Some((k, variance)) = slide_consensus_of_rows(&rows, J_MIN)
+        {
+            let k = known + k;
+            if k.is_finite() && variance.is_finite() {
+                self.slide.push_back([self.odometer_m, k, 1.0 / variance.max(1e-12), odom.yaw]);
             }
         }
         self.slide_consensus(config)
@@ -1160,6 +1163,65 @@ fn with_shear(n: &Matrix5<f64>, r: &Vector5<f64>, k: f64) -> Option<Vector5<f64>
 /// so the lane does not jump as the shear crosses the deadband, and nearly `k` for a shear well beyond it.
 fn shrink(k: f64, deadband: f64) -> f64 {
     if k.abs() <= deadband { 0.0 } else { k - deadband * deadband / k }
+}
+
+/// One row's share of a slide-test comparison: the normal equations of its lateral residuals fitted as
+/// `c + e·x + Δk·age` (see [`Lanes::observe_slide`]).
+#[derive(Debug, Clone, Copy, Default)]
+struct RowFit {
+    n: Matrix3<f64>,
+    v: Vector3<f64>,
+    rss: f64,
+    count: usize,
+}
+
+impl RowFit {
+    fn add(&mut self, x: f64, d: f64, w: f64, age_m: f64) {
+        let phi = Vector3::new(1.0, x, age_m);
+        self.n += w * phi * phi.transpose();
+        self.v += w * d * phi;
+        self.rss += w * d * d;
+        self.count += 1;
+    }
+
+    /// The row's shear `Δk` and its variance, when it holds enough centroids of more than one age.
+    fn shear(&self) -> Option<(f64, f64)> {
+        if self.count < SLIDE_ROW_MIN_CENTROIDS {
+            return None;
+        }
+        let inv = self.n.try_inverse().filter(|m| m[(2, 2)] > 0.0)?;
+        let p = inv * self.v;
+        let variance = (self.rss - p.dot(&self.v)).max(0.0) / (self.count - 3) as f64 * inv[(2, 2)];
+        (p[2].is_finite() && variance.is_finite()).then_some((p[2], variance.max(SLIDE_ROW_MIN_VARIANCE)))
+    }
+}
+
+/// The shear that the rows on both sides of the robot agree on, with its variance: each side's rows
+/// (`j >= 0` left, `j < 0` right; `rows[i]` is row `j_min + i`) are pooled with inverse-variance
+/// weights; when the two sides agree in sign, all rows pooled are the comparison's shear (a slide
+/// moves every row alike, so both sides measure it); when they disagree, the comparison is 0, which
+/// keeps the sign test of [`Lanes::slide_consensus`] shut for a window. A weed clump pulls the
+/// centroids of the one or two rows beside it, and a clump in an inter-row pulls its two rows towards
+/// each other (opposite signs), so it rarely moves both sides alike. Taking the weaker side instead of
+/// all rows pooled was measured too (docs/faults.md): slower on slides. `None` while one side shows
+/// no row with a shear.
+fn slide_consensus_of_rows(rows: &[RowFit], j_min: i32) -> Option<(f64, f64)> {
+    let mut sides = [(0.0, 0.0); 2];
+    for (j, row) in (j_min..).zip(rows) {
+        if let Some((k, variance)) = row.shear() {
+            let side = &mut sides[usize::from(j < 0)];
+            side.0 += k / variance;
+            side.1 += 1.0 / variance;
+        }
+    }
+    let [(lk, lw), (rk, rw)] = sides;
+    if lw <= 0.0 || rw <= 0.0 {
+        return None;
+    }
+    if lk * rk <= 0.0 {
+        return Some((0.0, (1.0 / lw).max(1.0 / rw)));
+    }
+    Some(((lk + rk) / (lw + rw), 1.0 / (lw + rw)))
 }
 
 /// Row spacing from the autocorrelation of the lateral canopy histogram (demeaned in place); see
@@ -1621,6 +1683,15 @@ mod tests {
         slide_per_m: f64,
         config: &DetectorConfig,
     ) -> (Lane, f64, f64, Vec<(f64, Option<f64>)>) {
+        drive_with_row_slides([slide_per_m; 6], config)
+    }
+
+    /// [`drive_with_slide_test`] where each of the six rows (right to left) moves by its own amount per
+    /// metre driven: all alike is a slide, one row alone is a clump growing beside it.
+    fn drive_with_row_slides(
+        slides_per_m: [f64; 6],
+        config: &DetectorConfig,
+    ) -> (Lane, f64, f64, Vec<(f64, Option<f64>)>) {
         let mut verdicts = Vec::new();
         let mut lanes = Lanes::new(config);
         let mut map = CentroidMap::new(config.map_capacity);
@@ -1629,8 +1700,9 @@ mod tests {
         let mut y_true = 0.0;
         for k in 0..60 {
             let x = 0.1 * k as f64;
-            y_true = slide_per_m * x;
-            let rows: Vec<f64> = (-3..3).map(|j| (j as f64 + 0.5) * 0.75 - y_true).collect();
+            y_true = slides_per_m[3] * x;
+            let rows: Vec<f64> =
+                (-3..3).zip(slides_per_m).map(|(j, k)| (j as f64 + 0.5) * 0.75 - k * x).collect();
             let pts = rows_of_points(&rows, 0.0);
             let odom = Pose2::new(x, 0.0, 0.0);
             let out = lanes.step(&pts, &pts, &odom, 0.1 * k as f64, config, &mut map, &mut centroids);
@@ -1664,6 +1736,65 @@ mod tests {
         // 0.015 m/m, under half the 0.04 m/m the test takes for a slide.
         let (_, _, _, verdicts) = drive_with_slide_test(0.015, &slide_test_on());
         assert!(verdicts.iter().all(|(_, k)| k.is_none()), "{verdicts:?}");
+    }
+
+    #[test]
+    fn a_clump_moving_one_row_is_no_slide() {
+        // The first row left alone moves by 0.25 m per metre (a clump growing beside it), the others
+        // stand: the rows right of the robot disagree, so the test never declares a slide (pooled over
+        // all six rows, as before the per-row test, it read as one of about 0.04).
+        let mut slides = [0.0; 6];
+        slides[3] = 0.25;
+        let (_, _, _, verdicts) = drive_with_row_slides(slides, &slide_test_on());
+        assert!(verdicts.iter().all(|(_, k)| k.is_none()), "{verdicts:?}");
+    }
+
+    #[test]
+    fn a_clump_between_the_lane_rows_is_no_slide() {
+        // A clump in the lane's inter-row pulls its two rows towards each other: opposite shifts.
+        let mut slides = [0.0; 6];
+        slides[2] = -0.1;
+        slides[3] = 0.1;
+        let (_, _, _, verdicts) = drive_with_row_slides(slides, &slide_test_on());
+        assert!(verdicts.iter().all(|(_, k)| k.is_none()), "{verdicts:?}");
+    }
+
+    /// One row's comparison: this scan's centroids (age 0) and stored ones (ages 0.15-0.75 m) over
+    /// x = 2-5 m, each displaced by `shear · age`.
+    fn row_fit(shear: f64) -> RowFit {
+        let mut row = RowFit::default();
+        for a in 0..6 {
+            let age = 0.15 * a as f64;
+            for i in 0..12 {
+                row.add(2.0 + 0.25 * i as f64, shear * age, 1.0, age);
+            }
+        }
+        row
+    }
+
+    #[test]
+    fn rows_shifting_alike_give_their_shear() {
+        // Rows j = -2..2 (two each side), all at 0.08 m/m: their shear, to 1e-9.
+        let rows = [row_fit(0.08), row_fit(0.08), row_fit(0.08), row_fit(0.08)];
+        let (k, _) = slide_consensus_of_rows(&rows, -2).unwrap();
+        assert!((k - 0.08).abs() < 1e-9, "{k}");
+    }
+
+    #[test]
+    fn rows_disagreeing_across_the_robot_give_no_shear() {
+        // Left rows at +0.08, right rows at -0.02 and 0: the sides disagree in sign, the comparison is 0.
+        let rows = [row_fit(-0.02), row_fit(0.0), row_fit(0.08), row_fit(0.08)];
+        assert_eq!(slide_consensus_of_rows(&rows, -2).map(|(k, _)| k), Some(0.0));
+        // Both sides positive, with equal weights: all rows pooled, to 1e-9.
+        let rows = [row_fit(0.03), row_fit(0.03), row_fit(0.09), row_fit(0.09)];
+        let (k, _) = slide_consensus_of_rows(&rows, -2).unwrap();
+        assert!((k - 0.06).abs() < 1e-9, "{k}");
+    }
+
+    #[test]
+    fn rows_on_one_side_only_give_no_comparison() {
+        let rows = [RowFit::default(), RowFit::default(), row_fit(0.08), row_fit(0.08)];
+        assert_eq!(slide_consensus_of_rows(&rows, -2), None);
     }
 
     /// The slide test on, as measured in docs/faults.md.
