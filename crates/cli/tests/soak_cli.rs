@@ -58,3 +58,56 @@ fn unknown_suite_and_zero_runs_are_refused() {
     assert!(String::from_utf8_lossy(&zero.stderr).contains("--runs"));
     let _ = std::fs::remove_dir_all(&out);
 }
+
+/// Runs a one-seed soak with `sets` and returns its `soak.json`.
+fn soak_seed(seed: u64, sets: &[&str], tag: &str) -> serde_json::Value {
+    let out = std::env::temp_dir().join(format!("croprow-soak-cli-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&out);
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_croprow"));
+    cmd.args(["evaluate", "--suite", "soak", "--runs", "1", "--seed", &seed.to_string(), "--out"]).arg(&out);
+    for set in sets {
+        cmd.args(["--set", set]);
+    }
+    cmd.output().expect("runs");
+    let text = std::fs::read_to_string(out.join("soak.json")).expect("soak.json written");
+    let _ = std::fs::remove_dir_all(&out);
+    serde_json::from_str(&text).expect("soak.json is JSON")
+}
+
+#[test]
+fn a_set_override_reaches_every_run_and_its_replay_line() {
+    // Seed 8: grown corn with a wheel slide that runs over plants with the defaults; the opt-in slide
+    // test changes how many, and its override must be in the replay command.
+    let plain = soak_seed(8, &[], "plain");
+    let opted = soak_seed(8, &["detector.shear_window_m=0.5"], "opted");
+    let plants = |v: &serde_json::Value| v["crop_contacts"].as_u64().expect("crop_contacts");
+    assert!(plants(&plain) > 0, "seed 8 no longer touches with the defaults: {plain}");
+    assert_ne!(plants(&plain), plants(&opted), "the override did not reach the run");
+    for f in opted["failures"].as_array().expect("failures") {
+        let replay = f["replay"].as_str().expect("replay");
+        assert!(replay.contains("--set detector.shear_window_m=0.5"), "{replay}");
+    }
+}
+
+#[test]
+fn soak_overrides_outside_the_navigator_or_out_of_range_are_refused_before_any_run() {
+    for (set, says) in
+        [("field.length_m=3", "only navigator keys"), ("detector.shear_window_m=-1", "shear_window_m")]
+    {
+        let out = std::env::temp_dir().join(format!("croprow-soak-cli-refused-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&out);
+        let run = Command::new(env!("CARGO_BIN_EXE_croprow"))
+            .args(["evaluate", "--suite", "soak", "--runs", "1", "--set", set, "--out"])
+            .arg(&out)
+            .output()
+            .expect("runs");
+        assert!(!run.status.success(), "{set} accepted");
+        assert!(
+            String::from_utf8_lossy(&run.stderr).contains(says),
+            "{set}: {}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        assert!(!out.join("soak.json").exists(), "{set}: runs were driven");
+        let _ = std::fs::remove_dir_all(&out);
+    }
+}

@@ -65,6 +65,10 @@ pub struct Args {
     /// Soak: seed of the first run.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Soak: navigator override `KEY=VALUE` applied to every run (`detector.*`, `lane_switch.*`, ...;
+    /// values are TOML), e.g. `--set detector.shear_window_m=0.5` to soak an opt-in. Repeatable.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
 }
 
 /// Detection errors as in Table I.
@@ -167,8 +171,11 @@ impl Pooled {
 pub fn run(args: Args) -> Result<()> {
     match args.suite.as_str() {
         "paper" => {}
-        "soak" => return super::soak::run(args.runs, args.seed, &args.out),
+        "soak" => return super::soak::run(args.runs, args.seed, &args.set, &args.out),
         other => bail!("unknown suite `{other}` (known: paper, soak)"),
+    }
+    if !args.set.is_empty() {
+        bail!("--set applies to `--suite soak` only (Table I runs the paper's settings)");
     }
     if args.seeds == 0 || args.seeds > 1000 {
         bail!("--seeds must be in 1..=1000");

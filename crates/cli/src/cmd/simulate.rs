@@ -60,7 +60,7 @@ pub struct Setup {
 }
 
 /// Sections of `--set` keys that belong to the navigator.
-const NAV_SECTIONS: [&str; 6] = ["detector", "reference", "mpc", "lane_switch", "ekf", "drift"];
+pub(crate) const NAV_SECTIONS: [&str; 6] = ["detector", "reference", "mpc", "lane_switch", "ekf", "drift"];
 
 impl Setup {
     /// Loads a built-in scenario or a TOML file, applies the seed and the overrides.

@@ -9,7 +9,8 @@
 //! every failing seed `DIR/fail-SEED.toml`, its scenario, so that the `replay` command
 //! (`croprow simulate --scenario DIR/fail-SEED.toml --set ... --out DIR/replay-SEED`) drives it again
 //! with plots and a trajectory; `croprow evaluate --suite soak --runs 1 --seed SEED` re-runs it under the
-//! monitor. Exits non-zero when any run failed.
+//! monitor. `--set KEY=VALUE` (navigator keys only) changes every run's navigator, so an opt-in can be
+//! soaked; the overrides go into each replay line. Exits non-zero when any run failed.
 
 use std::any::Any;
 use std::cell::RefCell;
@@ -22,6 +23,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
+use croprow_io::overrides;
 use croprow_sim::experiment::soak::{Case, Outcome, run_case, soak_case};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde::Serialize;
@@ -86,11 +88,13 @@ thread_local! {
     static LAST_PANIC: RefCell<Option<String>> = const { RefCell::new(None) };
 }
 
-/// Runs the soak suite.
-pub fn run(runs: u32, seed: u64, out: &Path) -> Result<()> {
+/// Runs the soak suite, every run's navigator changed by `sets` (`KEY=VALUE`, navigator keys).
+pub fn run(runs: u32, seed: u64, sets: &[String], out: &Path) -> Result<()> {
     if runs == 0 || runs > MAX_RUNS {
         bail!("--runs must be in 1..={MAX_RUNS}");
     }
+    // A bad override is refused before any run, not reported once per seed.
+    case_of(seed, sets)?;
     fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let seeds: Vec<u64> = (0..u64::from(runs)).map(|k| seed.wrapping_add(k)).collect();
     let bar = ProgressBar::with_draw_target(Some(seeds.len() as u64), ProgressDrawTarget::stderr());
@@ -113,7 +117,7 @@ pub fn run(runs: u32, seed: u64, out: &Path) -> Result<()> {
         for _ in 0..workers {
             scope.spawn(|| {
                 while let Some(&s) = seeds.get(next.fetch_add(1, Ordering::Relaxed)) {
-                    let verdict = run_one(s);
+                    let verdict = run_one(s, sets);
                     let bad = match &verdict {
                         Verdict::Ran(o) => !o.failures().is_empty(),
                         Verdict::Error(_) | Verdict::Panic(_) => true,
@@ -153,7 +157,7 @@ pub fn run(runs: u32, seed: u64, out: &Path) -> Result<()> {
         each: Vec::with_capacity(seeds.len()),
     };
     for (&s, verdict) in seeds.iter().zip(verdicts) {
-        let case = soak_case(s);
+        let case = case_of(s, sets)?;
         let summary = &case.scenario.summary;
         let mut line = RunLine {
             seed: s,
@@ -216,12 +220,37 @@ pub fn run(runs: u32, seed: u64, out: &Path) -> Result<()> {
     Ok(())
 }
 
+/// The soak case of `seed` with the navigator overrides `sets` applied and added to its replay line.
+fn case_of(seed: u64, sets: &[String]) -> Result<Case> {
+    let mut case = soak_case(seed);
+    for item in sets {
+        let (key, raw) = item.split_once('=').with_context(|| format!("--set {item}: expected KEY=VALUE"))?;
+        let (key, raw) = (key.trim(), raw.trim());
+        let section = key.split_once('.').map_or(key, |(section, _)| section);
+        if !super::simulate::NAV_SECTIONS.contains(&section) {
+            bail!(
+                "--set {item}: the soak draws its own fields and runs; only navigator keys ({}) can be set",
+                super::simulate::NAV_SECTIONS.join(", ")
+            );
+        }
+        case.navigator = overrides::set(&case.navigator, key, overrides::parse_literal(raw))
+            .with_context(|| format!("--set {item}"))?;
+        case.overrides.push(format!("{key}={raw}"));
+    }
+    case.navigator.validate().context("the navigator with the --set overrides")?;
+    Ok(case)
+}
+
 /// Draws and runs one case; a panic anywhere in it is caught and reported with the seed.
-fn run_one(seed: u64) -> Verdict {
+fn run_one(seed: u64, sets: &[String]) -> Verdict {
     LAST_PANIC.with(|p| p.borrow_mut().take());
-    match panic::catch_unwind(AssertUnwindSafe(|| run_case(&soak_case(seed)))) {
+    let ran = panic::catch_unwind(AssertUnwindSafe(|| -> Result<Outcome, String> {
+        let case = case_of(seed, sets).map_err(|e| format!("{e:#}"))?;
+        run_case(&case).map_err(|e| e.to_string())
+    }));
+    match ran {
         Ok(Ok(outcome)) => Verdict::Ran(outcome),
-        Ok(Err(e)) => Verdict::Error(e.to_string()),
+        Ok(Err(e)) => Verdict::Error(e),
         Err(payload) => {
             let hooked = LAST_PANIC.with(|p| p.borrow_mut().take());
             Verdict::Panic(hooked.unwrap_or_else(|| payload_text(payload.as_ref())))
