@@ -87,6 +87,13 @@ pub fn parse_as(current: &toml::Value, key: &str, text: &str) -> Result<toml::Va
     })
 }
 
+/// Splits one `--set key=value` item at its first `=` into the dotted key and the value's text,
+/// both trimmed; an item without `=` is an error that quotes it.
+pub fn split_assignment(item: &str) -> Result<(&str, &str), ConfigError> {
+    let (key, text) = item.split_once('=').ok_or_else(|| ConfigError::invalid(item, "expected KEY=VALUE"))?;
+    Ok((key.trim(), text.trim()))
+}
+
 /// Parses the text after `=` in `--set key=value` as a TOML value; a bare word is a string
 /// (`detector.mode=paper`), so nobody has to quote inside a shell.
 pub fn parse_literal(text: &str) -> toml::Value {
@@ -168,6 +175,14 @@ mod tests {
         assert!(parse_as(&current, "inner.rate_hz", "fast").is_err());
         assert!(leaf(&c, "inner").is_err());
         assert!(leaf(&c, "inner.nope").is_err());
+    }
+
+    #[test]
+    fn an_assignment_splits_at_its_first_equals_sign() {
+        assert_eq!(split_assignment(" mpc.horizon_steps = 30 ").unwrap(), ("mpc.horizon_steps", "30"));
+        assert_eq!(split_assignment("topic=/a=b").unwrap(), ("topic", "/a=b"));
+        let e = split_assignment("mpc.horizon_steps").unwrap_err();
+        assert!(e.to_string().contains("mpc.horizon_steps"), "{e}");
     }
 
     #[test]

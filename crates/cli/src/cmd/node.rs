@@ -15,6 +15,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
+use croprow_io::overrides;
 use croprow_ros2::{DdsOptions, LiveNode, NodeConfig};
 
 /// Arguments of `croprow node`.
@@ -57,9 +58,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => NodeConfig::default(),
     };
     for item in &args.set {
-        let (key, value) =
-            item.split_once('=').with_context(|| format!("--set {item}: expected KEY=VALUE"))?;
-        cfg.set(key.trim(), value).with_context(|| format!("--set {item}"))?;
+        let (key, text) = overrides::split_assignment(item).with_context(|| format!("--set {item}"))?;
+        cfg.set(key, text).with_context(|| format!("--set {item}"))?;
     }
     if args.print_config {
         print!("{}", toml::to_string(&cfg).context("writing the configuration")?);

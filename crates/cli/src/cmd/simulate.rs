@@ -62,6 +62,12 @@ pub struct Setup {
 /// Sections of `--set` keys that belong to the navigator.
 pub(crate) const NAV_SECTIONS: [&str; 6] = ["detector", "reference", "mpc", "lane_switch", "ekf", "drift"];
 
+/// Whether a dotted `--set` key belongs to the navigator (`mpc.horizon_steps`), not to the
+/// scenario or the run.
+pub(crate) fn is_navigator_key(key: &str) -> bool {
+    key.split_once('.').is_some_and(|(section, _)| NAV_SECTIONS.contains(&section))
+}
+
 impl Setup {
     /// Loads a built-in scenario or a TOML file, applies the seed and the overrides.
     pub fn load(scenario: &str, seed: Option<u64>, sets: &[String]) -> Result<Self> {
@@ -97,15 +103,14 @@ impl Setup {
 
     /// Applies one `key=value` override.
     fn apply(&mut self, item: &str) -> Result<()> {
-        let (key, raw) = item.split_once('=').context("expected KEY=VALUE")?;
-        let key = key.trim();
-        let value = overrides::parse_literal(raw.trim());
-        match key.split_once('.') {
-            Some(("run", rest)) => self.run = overrides::set(&self.run, rest, value)?,
-            Some((section, _)) if NAV_SECTIONS.contains(&section) => {
-                self.navigator = overrides::set(&self.navigator, key, value)?;
-            }
-            _ => self.scenario = overrides::set(&self.scenario, key, value)?,
+        let (key, text) = overrides::split_assignment(item)?;
+        let value = overrides::parse_literal(text);
+        if let Some(rest) = key.strip_prefix("run.") {
+            self.run = overrides::set(&self.run, rest, value)?;
+        } else if is_navigator_key(key) {
+            self.navigator = overrides::set(&self.navigator, key, value)?;
+        } else {
+            self.scenario = overrides::set(&self.scenario, key, value)?;
         }
         Ok(())
     }

@@ -224,18 +224,16 @@ pub fn run(runs: u32, seed: u64, sets: &[String], out: &Path) -> Result<()> {
 fn case_of(seed: u64, sets: &[String]) -> Result<Case> {
     let mut case = soak_case(seed);
     for item in sets {
-        let (key, raw) = item.split_once('=').with_context(|| format!("--set {item}: expected KEY=VALUE"))?;
-        let (key, raw) = (key.trim(), raw.trim());
-        let section = key.split_once('.').map_or(key, |(section, _)| section);
-        if !super::simulate::NAV_SECTIONS.contains(&section) {
+        let (key, text) = overrides::split_assignment(item).with_context(|| format!("--set {item}"))?;
+        if !super::simulate::is_navigator_key(key) {
             bail!(
                 "--set {item}: the soak draws its own fields and runs; only navigator keys ({}) can be set",
                 super::simulate::NAV_SECTIONS.join(", ")
             );
         }
-        case.navigator = overrides::set(&case.navigator, key, overrides::parse_literal(raw))
+        case.navigator = overrides::set(&case.navigator, key, overrides::parse_literal(text))
             .with_context(|| format!("--set {item}"))?;
-        case.overrides.push(format!("{key}={raw}"));
+        case.overrides.push(format!("{key}={text}"));
     }
     case.navigator.validate().context("the navigator with the --set overrides")?;
     Ok(case)
