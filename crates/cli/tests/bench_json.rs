@@ -12,7 +12,11 @@ fn bench_json_has_every_key_as_a_positive_number() {
         let x = v[key].as_f64().unwrap_or_else(|| panic!("`{key}` missing or not a number: {v}"));
         assert!(x.is_finite() && x > 0.0, "{key} = {x}");
     }
-    for key in ["detect", "detect_paper", "sim_scans", "mpc"] {
+    let factor = |key: &str| v[key].as_f64().unwrap_or_else(|| panic!("`{key}` missing: {v}"));
+    let (min, median, max) =
+        (factor("sim_realtime_factor_min"), factor("sim_realtime_factor"), factor("sim_realtime_factor_max"));
+    assert!(0.0 < min && min <= median && median <= max && max.is_finite(), "{min} {median} {max}");
+    for key in ["detect", "detect_paper", "sim_scans", "sim_loops", "mpc"] {
         assert!(v["runs"][key].as_u64().is_some_and(|n| n > 0), "runs.{key}: {v}");
     }
     assert!(v["machine"]["cores"].as_u64().is_some_and(|n| n > 0), "{v}");

@@ -5,7 +5,8 @@
 //!   on full-resolution simulated VLP-16 scans (16 beams × 1800 azimuths, motion skew) over the grown-corn
 //!   scenario, driven by the human-like driver with EKF odometry; each mode runs over the whole sequence
 //!   of scans in order (a warm map, as on the robot) and the first scans (start-up search) are not timed;
-//! - `sim_realtime_factor`: simulated seconds per wall second of the full closed loop on one thread: field
+//! - `sim_realtime_factor`: simulated seconds per wall second of the full closed loop on one thread, the
+//!   median of `runs.sim_loops` loops of 8 s simulated each (min and max beside it): field
 //!   ray casting of every LiDAR revolution, robot dynamics, wheel odometry and IMU at their rates, crop
 //!   contacts, the EKF at every sensor sample, and the `Navigator` (detector, lane switching, MPC) at every
 //!   scan (10 Hz), its command held in between;
@@ -33,8 +34,10 @@ const FIELD_LENGTH_M: f64 = 25.0;
 /// Scans recorded for the detector timings, and the first ones of each sequence left untimed.
 const DETECT_SCANS: usize = 80;
 const DETECT_WARMUP_SCANS: usize = 10;
-/// Simulated time of the closed loop, s.
+/// Simulated time of one closed loop, s.
 const LOOP_SIM_S: f64 = 8.0;
+/// Closed loops timed: one loop is ~0.2 s of wall time, so a single one swings ±15 % with the load.
+const LOOP_RUNS: usize = 5;
 /// MPC solves timed, after untimed warm-up solves.
 const MPC_SOLVES: usize = 400;
 const MPC_WARMUP: usize = 20;
@@ -53,6 +56,7 @@ struct Runs {
     detect: usize,
     detect_paper: usize,
     sim_scans: usize,
+    sim_loops: usize,
     mpc: usize,
 }
 
@@ -72,6 +76,8 @@ struct Report {
     detect_paper_us_median: f64,
     detect_points_per_scan: f64,
     sim_realtime_factor: f64,
+    sim_realtime_factor_min: f64,
+    sim_realtime_factor_max: f64,
     sim_time_s: f64,
     sim_wall_s: f64,
     sim_distance_m: f64,
@@ -91,23 +97,32 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let (scans, points_per_scan) = record_scans(&scenario)?;
     let default = time_detector(DetectorConfig::default(), &scans, &scenario)?;
     let paper = time_detector(DetectorConfig::paper(), &scans, &scenario)?;
-    let (sim_time_s, sim_wall_s, sim_scans, sim_distance_m) = closed_loop(&scenario)?;
+    let loops = (0..LOOP_RUNS).map(|_| closed_loop(&scenario)).collect::<anyhow::Result<Vec<_>>>()?;
+    let factors: Vec<f64> = loops.iter().map(|l| l.sim_time_s / l.wall_s.max(1e-9)).collect();
     let mpc = time_mpc()?;
 
     let report = Report {
         detect_us_median: median(&default),
         detect_paper_us_median: median(&paper),
         detect_points_per_scan: points_per_scan,
-        sim_realtime_factor: sim_time_s / sim_wall_s.max(1e-9),
-        sim_time_s,
-        sim_wall_s,
-        sim_distance_m,
+        sim_realtime_factor: median(&factors),
+        sim_realtime_factor_min: factors.iter().copied().fold(f64::INFINITY, f64::min),
+        sim_realtime_factor_max: factors.iter().copied().fold(0.0, f64::max),
+        sim_time_s: loops.iter().map(|l| l.sim_time_s).sum(),
+        sim_wall_s: loops.iter().map(|l| l.wall_s).sum(),
+        sim_distance_m: loops.iter().map(|l| l.distance_m).sum(),
         sim_includes: "ray-cast VLP-16 with motion skew, robot dynamics, wheel odometry 50 Hz, IMU 100 Hz, \
                        crop contacts, EKF, Navigator (detector + lane switching + MPC) at 10 Hz; one thread",
         mpc_solve_us_median: median(&mpc),
         mpc_horizon_steps: MpcConfig::default().horizon_steps,
         scenario: SCENARIO,
-        runs: Runs { detect: default.len(), detect_paper: paper.len(), sim_scans, mpc: mpc.len() },
+        runs: Runs {
+            detect: default.len(),
+            detect_paper: paper.len(),
+            sim_scans: loops.iter().map(|l| l.scans).sum(),
+            sim_loops: loops.len(),
+            mpc: mpc.len(),
+        },
         machine: machine(),
     };
     if args.json {
@@ -165,8 +180,16 @@ fn time_detector(
     Ok(times)
 }
 
-/// The closed loop for `LOOP_SIM_S` simulated seconds: (simulated s, wall s, scans, distance driven m).
-fn closed_loop(scenario: &Scenario) -> anyhow::Result<(f64, f64, usize, f64)> {
+/// One timed closed loop.
+struct Loop {
+    sim_time_s: f64,
+    wall_s: f64,
+    scans: usize,
+    distance_m: f64,
+}
+
+/// The closed loop for `LOOP_SIM_S` simulated seconds, from a fresh world (its build not timed).
+fn closed_loop(scenario: &Scenario) -> anyhow::Result<Loop> {
     let mut world = World::new(scenario).context("building the world")?;
     let mut nav = Navigator::new(NavigatorConfig::default()).context("navigator")?;
     let mut ekf = Ekf::new(nav.config().ekf.clone()).context("EKF")?;
@@ -193,7 +216,12 @@ fn closed_loop(scenario: &Scenario) -> anyhow::Result<(f64, f64, usize, f64)> {
     }
     let wall_s = wall.elapsed().as_secs_f64();
     let end = world.robot().pose();
-    Ok((world.time_s(), wall_s, scans, (end.x - start.x).hypot(end.y - start.y)))
+    Ok(Loop {
+        sim_time_s: world.time_s(),
+        wall_s,
+        scans,
+        distance_m: (end.x - start.x).hypot(end.y - start.y),
+    })
 }
 
 /// Wall time of warm MPC solves following a straight row, µs.
@@ -280,8 +308,16 @@ fn print_table(r: &Report) {
         r.detect_paper_us_median, r.runs.detect_paper
     );
     println!(
-        "closed loop            {:>9.1} × real time ({:.1} s simulated in {:.2} s wall, {} scans, {:.1} m driven)",
-        r.sim_realtime_factor, r.sim_time_s, r.sim_wall_s, r.runs.sim_scans, r.sim_distance_m
+        "closed loop            median {:>6.1} × real time (min {:.1}, max {:.1}) over {} loops: \
+         {:.1} s simulated in {:.2} s wall, {} scans, {:.1} m driven",
+        r.sim_realtime_factor,
+        r.sim_realtime_factor_min,
+        r.sim_realtime_factor_max,
+        r.runs.sim_loops,
+        r.sim_time_s,
+        r.sim_wall_s,
+        r.runs.sim_scans,
+        r.sim_distance_m
     );
     println!("  includes: {}", r.sim_includes);
     println!(
