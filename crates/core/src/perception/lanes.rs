@@ -123,6 +123,9 @@ const SLIDE_ROW_MIN_VARIANCE: f64 = 1e-6;
 /// Fewest comparisons pooled before the slide test may decide, and the most kept (a window of 0.5 m
 /// at 0.5 m/s and 10 Hz holds 10).
 const SLIDE_MIN_SAMPLES: usize = 4;
+/// Standard errors from none at which the rows' pooled turn (see [`turn_of_rows`]) is taken for a turn
+/// of `odom` and removed from their shear.
+const SLIDE_TURN_Z: f64 = 4.0;
 const SLIDE_CAPACITY: usize = 64;
 /// Most the robot may have turned over the pooled comparisons for the slide test to declare a slide,
 /// rad: while it swings onto a line (after a lane entry, measured on the full-field demo) the scans'
@@ -305,6 +308,10 @@ pub(crate) struct Lanes {
     slide: VecDeque<[f64; 4]>,
     /// The shear the slide test agreed on at the last correction, m/m.
     slide_found: Option<f64>,
+    /// Odometer reading where the declared slide began, m: where it was declared, less the window
+    /// that showed it. Centroids stored before it have moved by the shear times the distance since
+    /// it, not times their age (see [`Lanes::correct`]).
+    slide_onset_m: Option<f64>,
     /// Odometer reading when the lane was found, m.
     lane_since_m: f64,
 }
@@ -350,6 +357,7 @@ impl Lanes {
             fresh: true,
             slide: VecDeque::with_capacity(SLIDE_CAPACITY),
             slide_found: None,
+            slide_onset_m: None,
             lane_since_m: 0.0,
         }
     }
@@ -365,6 +373,7 @@ impl Lanes {
         self.fresh = true;
         self.slide.clear();
         self.slide_found = None;
+        self.slide_onset_m = None;
     }
 
     /// One scan: `canopy` and `cropped` points in `base_link`, `odom` its pose at `t_s`.
@@ -389,6 +398,7 @@ impl Lanes {
             self.shear_per_m = 0.0;
             self.slide.clear();
             self.slide_found = None;
+            self.slide_onset_m = None;
             map.clear();
         }
         let predicted = match self.model {
@@ -408,6 +418,7 @@ impl Lanes {
                 (self.fresh && config.start_confirmations > 0).then_some((predicted, *odom, 0));
             self.slide.clear();
             self.slide_found = None;
+            self.slide_onset_m = None;
             self.lane_since_m = self.odometer_m;
         }
         self.measure(canopy, cropped, &predicted, config);
@@ -893,6 +904,15 @@ impl Lanes {
         let view_start = self.current.iter().map(|c| c[0]).fold(x_max, f64::min);
         let slide = self.observe_slide(predicted, odom, config, map, view_start);
         self.slide_found = slide;
+        self.slide_onset_m = match (slide, self.slide_onset_m) {
+            (None, _) => None,
+            (Some(_), Some(onset)) => Some(onset),
+            (Some(_), None) => Some(self.odometer_m - config.shear_window_m),
+        };
+        // A declared slide moves a centroid by its shear times the distance driven since the slide
+        // began or since the centroid was stored, whichever is shorter; the joint fit's own shear
+        // (no slide declared) moves every centroid by its age.
+        let slid_m = self.slid_m();
         let (sin, cos) = odom.yaw.sin_cos();
         self.local.clear();
         self.local.extend(self.current.iter().map(|&[x, y, w]| [x, y, w, 0.0]));
@@ -928,6 +948,7 @@ impl Lanes {
                 centroids.clear();
             }
             for &[x, y, weight, age_m] in &self.local {
+                let age_m = age_m.min(slid_m);
                 let (j, d) = lane.assign(x, y - shear * age_m);
                 if d.abs() > gate || !(J_MIN..J_MIN + ROWS as i32).contains(&j) {
                     continue;
@@ -1049,11 +1070,12 @@ impl Lanes {
         }
         let gate = config.gate_fraction * predicted.s;
         let known = self.shear_per_m;
+        let slid_m = self.slid_m();
         // One fit per row: a slide moves every row alike, a weed clump the centroids of one or two.
         let mut rows = [RowFit::default(); ROWS];
         let mut fresh_w = 0.0;
         let mut add = |x: f64, y: f64, w: f64, age_m: f64| {
-            let (j, d) = predicted.assign(x, y - known * age_m);
+            let (j, d) = predicted.assign(x, y - known * age_m.min(slid_m));
             let Some(row) = usize::try_from(j - J_MIN).ok().and_then(|r| rows.get_mut(r)) else {
                 return false;
             };
@@ -1096,6 +1118,12 @@ impl Lanes {
             }
         }
         self.slide_consensus(config)
+    }
+
+    /// Longest distance over which the current shear has moved a stored centroid, m: since the declared
+    /// slide began, or unbounded (each centroid's age) when none is declared.
+    fn slid_m(&self) -> f64 {
+        self.slide_onset_m.map_or(f64::INFINITY, |onset| (self.odometer_m - onset).max(0.0))
     }
 
     /// The shear the slide test's pooled comparisons agree on (see [`Lanes::observe_slide`]).
@@ -1166,33 +1194,57 @@ fn shrink(k: f64, deadband: f64) -> f64 {
 }
 
 /// One row's share of a slide-test comparison: the normal equations of its lateral residuals fitted as
-/// `c + e·x + Δk·age` (see [`Lanes::observe_slide`]).
+/// `c + e·x + Δk·age + m·x·age` (see [`Lanes::observe_slide`]). A slide moves the row by `Δk·age`
+/// wherever it is seen; a turn of `odom` the odometry did not sense (a gyro bias) rotates the stored
+/// centroids about the robot, moving each by its age times its distance ahead, `m·x·age`.
 #[derive(Debug, Clone, Copy, Default)]
 struct RowFit {
-    n: Matrix3<f64>,
-    v: Vector3<f64>,
+    n: Matrix4<f64>,
+    v: Vector4<f64>,
     rss: f64,
     count: usize,
 }
 
 impl RowFit {
     fn add(&mut self, x: f64, d: f64, w: f64, age_m: f64) {
-        let phi = Vector3::new(1.0, x, age_m);
+        let phi = Vector4::new(1.0, x, age_m, x * age_m);
         self.n += w * phi * phi.transpose();
         self.v += w * d * phi;
         self.rss += w * d * d;
         self.count += 1;
     }
 
-    /// The row's shear `Δk` and its variance, when it holds enough centroids of more than one age.
+    /// The row's shear `Δk` and its variance from `c + e·x + Δk·age` (no turn), when it holds enough
+    /// centroids of more than one age.
     fn shear(&self) -> Option<(f64, f64)> {
         if self.count < SLIDE_ROW_MIN_CENTROIDS {
             return None;
         }
-        let inv = self.n.try_inverse().filter(|m| m[(2, 2)] > 0.0)?;
-        let p = inv * self.v;
-        let variance = (self.rss - p.dot(&self.v)).max(0.0) / (self.count - 3) as f64 * inv[(2, 2)];
+        let n: Matrix3<f64> = self.n.fixed_view::<3, 3>(0, 0).into();
+        let v: Vector3<f64> = self.v.fixed_rows::<3>(0).into();
+        let inv = n.try_inverse().filter(|m| m[(2, 2)] > 0.0)?;
+        let p = inv * v;
+        let variance = (self.rss - p.dot(&v)).max(0.0) / (self.count - 3) as f64 * inv[(2, 2)];
         (p[2].is_finite() && variance.is_finite()).then_some((p[2], variance.max(SLIDE_ROW_MIN_VARIANCE)))
+    }
+
+    /// The row's turn `m` (rad per metre driven) and its variance from the full fit with the turn term,
+    /// when it holds enough centroids spread over ages and distances ahead.
+    fn turn(&self) -> Option<(f64, f64)> {
+        if self.count < SLIDE_ROW_MIN_CENTROIDS + 1 {
+            return None;
+        }
+        let inv = self.n.try_inverse().filter(|m| m[(3, 3)] > 0.0)?;
+        let p = inv * self.v;
+        let variance = (self.rss - p.dot(&self.v)).max(0.0) / (self.count - 4) as f64 * inv[(3, 3)];
+        (p[3].is_finite() && variance.is_finite()).then_some((p[3], variance.max(SLIDE_ROW_MIN_VARIANCE)))
+    }
+
+    /// Weighted mean distance ahead of the row's stored centroids (age > 0), m.
+    fn stored_x_m(&self) -> Option<f64> {
+        // Σw·age·x / Σw·age: the centroids that carry the shear, weighted by how much they carry.
+        let (swa, swax) = (self.n[(0, 2)], self.n[(1, 2)]);
+        (swa > 0.0).then(|| swax / swa)
     }
 }
 
@@ -1206,10 +1258,12 @@ impl RowFit {
 /// all rows pooled was measured too (docs/faults.md): slower on slides. `None` while one side shows
 /// no row with a shear.
 fn slide_consensus_of_rows(rows: &[RowFit], j_min: i32) -> Option<(f64, f64)> {
+    let turn = turn_of_rows(rows);
     let mut sides = [(0.0, 0.0); 2];
     for (j, row) in (j_min..).zip(rows) {
-        if let Some((k, variance)) = row.shear() {
+        if let (Some((k, variance)), Some(x)) = (row.shear(), row.stored_x_m()) {
             let side = &mut sides[usize::from(j < 0)];
+            let k = k - turn * x;
             side.0 += k / variance;
             side.1 += 1.0 / variance;
         }
@@ -1222,6 +1276,23 @@ fn slide_consensus_of_rows(rows: &[RowFit], j_min: i32) -> Option<(f64, f64)> {
         return Some((0.0, (1.0 / lw).max(1.0 / rw)));
     }
     Some(((lk + rk) / (lw + rw), 1.0 / (lw + rw)))
+}
+
+/// The turn of `odom` that all rows agree on, rad per metre driven (`rows` as in
+/// [`slide_consensus_of_rows`]), or 0 when the rows' pooled turn lies within [`SLIDE_TURN_Z`] standard
+/// errors of none. A yaw-rate error of the odometry (a gyro bias step the EKF has not learned yet)
+/// rotates the stored centroids about the robot: every row moves by its age times its distance ahead,
+/// 2-4 m in view, and without this term reads as a slide of that many times the turn.
+fn turn_of_rows(rows: &[RowFit]) -> f64 {
+    let (sw, swm) = rows
+        .iter()
+        .filter_map(RowFit::turn)
+        .fold((0.0, 0.0), |(sw, swm), (m, variance)| (sw + 1.0 / variance, swm + m / variance));
+    if sw <= 0.0 {
+        return 0.0;
+    }
+    let m = swm / sw;
+    if m.is_finite() && m.abs() * sw.sqrt() >= SLIDE_TURN_Z { m } else { 0.0 }
 }
 
 /// Row spacing from the autocorrelation of the lateral canopy histogram (demeaned in place); see
