@@ -1809,6 +1809,97 @@ mod tests {
         assert!(verdicts.iter().all(|(_, k)| k.is_none()), "{verdicts:?}");
     }
 
+    /// Drives 6 m along straight rows 0.75 m apart, 0.1 m per scan, on a true straight line, while the
+    /// odometry turns by `turn_rad_per_m` per metre driven (a gyro bias the EKF has not learned) and
+    /// the robot slides `slide_per_m` to the left from `slide_from_m` driven on. Returns the slide
+    /// test's verdict at each scan, `(x, found)`, and the last lane's centre error at the robot, m.
+    fn drive_with_turn_and_slide(
+        turn_rad_per_m: f64,
+        slide_per_m: f64,
+        slide_from_m: f64,
+        config: &DetectorConfig,
+    ) -> (Vec<(f64, Option<f64>)>, f64) {
+        let mut verdicts = Vec::new();
+        let mut lanes = Lanes::new(config);
+        let mut map = CentroidMap::new(config.map_capacity);
+        let mut centroids = Vec::new();
+        let mut odom = Pose2::default();
+        let mut error = f64::NAN;
+        for k in 0..60 {
+            let x = 0.1 * k as f64;
+            if k > 0 {
+                let yaw = odom.yaw + 0.5 * 0.1 * turn_rad_per_m;
+                odom = Pose2::new(
+                    odom.x + 0.1 * yaw.cos(),
+                    odom.y + 0.1 * yaw.sin(),
+                    odom.yaw + 0.1 * turn_rad_per_m,
+                );
+            }
+            let y_true = slide_per_m * (x - slide_from_m).max(0.0);
+            let rows: Vec<f64> = (-3..3).map(|j| (j as f64 + 0.5) * 0.75 - y_true).collect();
+            let pts = rows_of_points(&rows, 0.0);
+            let out = lanes.step(&pts, &pts, &odom, 0.1 * k as f64, config, &mut map, &mut centroids);
+            if let Some(lane) = out.lane {
+                error = lane.o + y_true;
+            }
+            verdicts.push((x, lanes.slide_per_m()));
+        }
+        (verdicts, error)
+    }
+
+    #[test]
+    fn a_turn_of_odom_is_no_slide() {
+        // 0.04 rad per metre: `fault-gyro-bias-step`'s 0.02 rad/s step at 0.5 m/s. Each stored centroid
+        // moves by its age times its distance ahead (2-4 m), a shear of 0.08-0.16 m/m without the turn
+        // term. Asserted over the first 4 m (0.16 rad of heading error; the EKF's bias check finds such
+        // a step within 2 m): beyond 5 m the test declared a slide of 0.04 m/m.
+        let (verdicts, _) = drive_with_turn_and_slide(0.04, 0.0, 0.0, &slide_test_on());
+        assert!(verdicts.iter().filter(|(x, _)| *x <= 4.0).all(|(_, k)| k.is_none()), "{verdicts:?}");
+    }
+
+    #[test]
+    fn a_slide_under_a_turn_of_odom_is_still_a_slide() {
+        // The same turn with a slide of 0.1 m/m from the start: declared by 1.5 m driven and, from 2 m
+        // on, within 0.04 m/m of the slide (measured 0.065-0.08: the turn term takes up a part).
+        let (verdicts, _) = drive_with_turn_and_slide(0.04, 0.1, 0.0, &slide_test_on());
+        let first = verdicts.iter().find(|(_, k)| k.is_some()).map(|(x, _)| *x);
+        assert!(first.is_some_and(|x| x <= 1.5), "{verdicts:?}");
+        for (x, k) in verdicts.iter().filter(|(x, _)| *x >= 2.0) {
+            assert!(k.is_some_and(|k| (k - 0.1).abs() < 0.04), "{x}: {k:?}");
+        }
+    }
+
+    #[test]
+    fn a_slide_declared_late_moves_only_the_centroids_it_moved() {
+        // 0.1 m/m from 3 m driven on, after 3 m of map: the centroids stored before the slide began
+        // moved by the slide since then, not by their age; at 6 m the lane at the robot is within
+        // 1.5 cm of the rows (measured 0.4 cm; with the slide applied to every age, 4.1 cm off).
+        let (verdicts, error) = drive_with_turn_and_slide(0.0, 0.1, 3.0, &slide_test_on());
+        assert!(verdicts.iter().any(|(_, k)| k.is_some()), "{verdicts:?}");
+        assert!(error.abs() < 0.015, "{error}");
+    }
+
+    #[test]
+    fn rows_turning_with_their_distance_ahead_give_no_shear() {
+        // Every row moved by 0.04 · x · age (a turn of odom), one row on each side: the turn is taken
+        // out and the comparison is within 1e-6 of none; a plain shear of 0.08 is kept.
+        let turned = |m: f64, k: f64| {
+            let mut row = RowFit::default();
+            for a in 0..6 {
+                let age = 0.15 * a as f64;
+                for i in 0..12 {
+                    let x = 2.0 + 0.25 * i as f64;
+                    row.add(x, (k + m * x) * age, 1.0, age);
+                }
+            }
+            row
+        };
+        let (k, _) = slide_consensus_of_rows(&[turned(0.04, 0.0), turned(0.04, 0.0)], -1).unwrap();
+        assert!(k.abs() < 1e-6, "{k}");
+        let (k, _) = slide_consensus_of_rows(&[turned(0.0, 0.08), turned(0.0, 0.08)], -1).unwrap();
+        assert!((k - 0.08).abs() < 1e-6, "{k}");
+    }
+
     #[test]
     fn a_clump_moving_one_row_is_no_slide() {
         // The first row left alone moves by 0.25 m per metre (a clump growing beside it), the others
