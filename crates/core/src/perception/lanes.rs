@@ -1959,9 +1959,14 @@ mod tests {
         assert_eq!(slide_consensus_of_rows(&rows, -2), None);
     }
 
-    /// The slide test on, as measured in docs/faults.md.
+    /// The slide test on, as measured in docs/faults.md (the defaults, spelled out).
     fn slide_test_on() -> DetectorConfig {
         DetectorConfig { shear_window_m: 0.5, shear_max_per_m: 0.12, ..DetectorConfig::default() }
+    }
+
+    /// The joint fit's shear term alone: the slide test off, the shear term's own bound.
+    fn shear_term_alone() -> DetectorConfig {
+        DetectorConfig { shear_window_m: 0.0, shear_max_per_m: 0.2, ..DetectorConfig::default() }
     }
 
     #[test]
@@ -1973,11 +1978,10 @@ mod tests {
 
     #[test]
     fn a_sheared_map_gives_the_shear_and_the_rows_where_they_are_now() {
-        // A slide of 0.1 m per metre with a weak prior and no deadband: the shear is found within
-        // 0.005 m/m and the lane centre (0.6 m to the robot's right by now) within 1 cm, heading within
-        // 0.1°.
-        let cfg =
-            DetectorConfig { shear_prior_m2: 0.1, shear_deadband_per_m: 0.0, ..DetectorConfig::default() };
+        // A slide of 0.1 m per metre with a weak prior and no deadband, the joint fit's shear term alone
+        // (the slide test off): the shear is found within 0.005 m/m and the lane centre (0.6 m to the
+        // robot's right by now) within 1 cm, heading within 0.1°.
+        let cfg = DetectorConfig { shear_prior_m2: 0.1, shear_deadband_per_m: 0.0, ..shear_term_alone() };
         let (lane, shear, y_true) = drive_with_slide(0.1, &cfg);
         assert!((shear - 0.1).abs() < 0.005, "{shear}");
         assert!((lane.o + y_true).abs() < 0.01, "{lane:?} vs {y_true}");
@@ -1986,10 +1990,11 @@ mod tests {
 
     #[test]
     fn the_default_shear_prior_halves_the_lean_of_a_slide() {
-        // The same slide with the defaults (prior and deadband shrink the shear) and with the shear
-        // pinned at 0: the default lane centre is off by less than half as much (measured 6 cm vs 27 cm).
-        let (lane, _, y_true) = drive_with_slide(0.1, &DetectorConfig::default());
-        let pinned = DetectorConfig { shear_enabled: false, ..DetectorConfig::default() };
+        // The same slide with the shear term's defaults (prior and deadband shrink the shear; the slide
+        // test off) and with the shear pinned at 0: the lane centre is off by less than half as much
+        // (measured 6 cm vs 27 cm).
+        let (lane, _, y_true) = drive_with_slide(0.1, &shear_term_alone());
+        let pinned = DetectorConfig { shear_enabled: false, ..shear_term_alone() };
         let (lane_pinned, shear, _) = drive_with_slide(0.1, &pinned);
         assert_eq!(shear, 0.0);
         let (err, err_pinned) = ((lane.o + y_true).abs(), (lane_pinned.o + y_true).abs());
