@@ -184,3 +184,18 @@ fn a_tall_weed_patch_is_no_slide_for_the_slide_test() {
     assert_eq!((m.crop_contacts, m.command_violations), (0, 0), "{m:?}");
     assert!(m.cross_track_mean_m < 0.01 && m.cross_track_max_m < 0.03, "{m:?}");
 }
+
+#[test]
+fn a_fault_free_grown_corn_field_has_no_false_slide() {
+    // Fault-free grown corn, three lanes (soak seed 765), with the slide test on. Its comparisons
+    // scatter about none by ±0.02 m/m here; 1.8 m into the first lane they read 0.045 for half a
+    // metre, and the slide so declared was applied to every stored centroid by its age: the lane
+    // jumped 8 cm, the robot swung 0.19 rad after it and the run ended `wrong_lane` over 22 plants. A
+    // declared slide now moves the centroids only by the distance driven since it began.
+    let mut case = soak_case(765);
+    assert!(case.scenario.summary.starts_with("grown corn 11.5 m x 8 rows 0.71 m apart"));
+    case.navigator.detector.shear_window_m = 0.5;
+    case.navigator.detector.shear_max_per_m = 0.12;
+    let outcome = run_case(&case).expect("runs");
+    assert_eq!((outcome.crop_contacts, outcome.unsafe_commands), (0, 0), "{outcome:?}");
+}
