@@ -319,6 +319,13 @@ pub struct LaneSwitchConfig {
     /// fresh fit 10-15 cm off its lane after scans stamped 0.78 s off, that fit wandered onto the next
     /// lattice while the robot drove, and the robot ran over a plant. Default 0.08.
     pub resume_lateral_tolerance_m: f64,
+    /// Largest heading of a lane's centre line relative to the robot, rad, for the robot to start
+    /// following it from `acquiring`. A robot is set down in its lane roughly along it (the soak
+    /// within ±3°, the recovery runs at ±8°); a lane further off is a fit that is not the crop's
+    /// lattice: tall weeds filling the view (soak seed 31: 15°), a metre of row before a gap across
+    /// every row (337: 26°), a closed canopy's fit wandering at rest (439, 982: 19-21°). Such a lane
+    /// resets the detector, which searches again, and the robot waits. Default 0.2 (11.5°).
+    pub max_start_heading_rad: f64,
 }
 
 impl Default for LaneSwitchConfig {
@@ -366,6 +373,7 @@ impl Default for LaneSwitchConfig {
             row_bias_stands: 0,
             following_spacing_tolerance: 0.15,
             resume_lateral_tolerance_m: 0.08,
+            max_start_heading_rad: 0.2,
         }
     }
 }
@@ -406,6 +414,7 @@ impl LaneSwitchConfig {
         check_range("lane_switch.spacing_tolerance", self.spacing_tolerance, 0.01, 10.0)?;
         check_range("lane_switch.max_line_jump_m", self.max_line_jump_m, 0.01, 10.0)?;
         check_range("lane_switch.resume_confirmations", f64::from(self.resume_confirmations), 0.0, 1000.0)?;
+        check_range("lane_switch.max_start_heading_rad", self.max_start_heading_rad, 0.01, 1.0)?;
         check_range(
             "lane_switch.resume_lateral_tolerance_m",
             self.resume_lateral_tolerance_m,
@@ -1025,12 +1034,18 @@ impl LaneSwitcher {
         let detection = believed.as_ref();
         match self.mode {
             Mode::Acquiring => {
+                let along_robot = detection.is_none_or(|d| {
+                    self.reference
+                        .centre_line(d)
+                        .is_none_or(|line| line.heading_rad.abs() <= self.cfg.max_start_heading_rad)
+                });
                 if let Some(d) = detection
                     && d.status == RowStatus::Tracking
+                    && along_robot
                     && self.reference.update(d, odom)
                 {
                     self.enter_following(odom);
-                } else if raw_disagrees {
+                } else if raw_disagrees || !along_robot {
                     // A wrong lattice is not tracked until it drifts into agreement: search afresh.
                     reset_detector = true;
                 }
@@ -1818,6 +1833,31 @@ mod tests {
             assert_eq!(g.speed_mps, sw.config().cruise_speed_mps, "at {x}");
         }
         assert!(sw.bias_suspected());
+    }
+
+    #[test]
+    fn a_lane_far_off_the_robot_heading_is_not_started_on() {
+        // 15° off the robot (soak seed 31: tall weeds filling the view at the start), over
+        // `max_start_heading_rad` (0.2 rad): searched again; 8° (the recovery runs) is started on.
+        let turned = |t: f64, deg: f64| {
+            let h = deg.to_radians();
+            let row = |offset_m: f64| RowEstimate {
+                line: [0.0, offset_m, 3.0 * h.cos(), offset_m + 3.0 * h.sin()],
+                offset_m,
+                heading_rad: h,
+                curvature_per_m: 0.0,
+                confidence: 1.0,
+            };
+            Detection { left: Some(row(0.375)), right: Some(row(-0.375)), ..rows(t, 0.0) }
+        };
+        let mut sw = LaneSwitcher::new(LaneSwitchConfig::default(), ReferenceConfig::default()).unwrap();
+        let at = Pose2::new(1.0, 0.0, 0.0);
+        for k in 0..5 {
+            let g = sw.update(&at, Some(&turned(0.1 * f64::from(k), 15.0)));
+            assert_eq!((g.mode, g.reset_detector, g.speed_mps), (Mode::Acquiring, true, 0.0));
+        }
+        let g = sw.update(&at, Some(&turned(0.5, 8.0)));
+        assert_eq!((g.mode, g.reset_detector), (Mode::Following, false));
     }
 
     #[test]
