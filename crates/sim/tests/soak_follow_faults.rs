@@ -46,17 +46,3 @@ fn a_lattice_narrowed_by_a_missing_sector_is_not_followed() {
     let outcome = provoke_then_guard(&unguarded, &guarded);
     assert!(outcome.end.starts_with("stopped"), "{outcome:?}");
 }
-
-#[test]
-fn a_stop_for_stamped_scans_resumes_only_on_the_lane_it_followed() {
-    // Grown corn 0.73 m apart, scans stamped 0.78 s off over x = 3.3-4.3 m of the second lane: after
-    // the `no_rows` stop the detector's fresh fit stood 10-15 cm off the lane, the robot resumed on it
-    // (0.25 m allowed) and the fit wandered onto the next lattice (1 plant). Within
-    // `resume_lateral_tolerance_m` (8 cm) of the line followed, with a new search for a fit further
-    // off, it resumes on its lane and finishes.
-    let guarded = case(482, "grown corn 11.5 m x 4 rows 0.73 m");
-    let mut unguarded = guarded.clone();
-    unguarded.navigator.lane_switch.resume_lateral_tolerance_m = 0.25;
-    let outcome = provoke_then_guard(&unguarded, &guarded);
-    assert_eq!((outcome.end.as_str(), outcome.lanes_completed), ("done", 2), "{outcome:?}");
-}

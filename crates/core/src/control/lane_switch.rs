@@ -243,7 +243,7 @@ pub struct LaneSwitchConfig {
     pub max_line_jump_m: f64,
     /// Consecutive detections needed to leave a stop whose cause can clear by itself (`rows_lost`,
     /// `no_rows`: a LiDAR dropout, dust, a gap in the rows) and follow again: each must be `tracking`
-    /// (or `end_of_row`) and its centre line within `resume_lateral_tolerance_m` and `entry_heading_tolerance_rad` of the
+    /// (or `end_of_row`) and its centre line within `entry_lateral_tolerance_m` and `entry_heading_tolerance_rad` of the
     /// line followed before the stop (the robot stood still: the lane cannot have changed). 0 latches
     /// every stop until [`LaneSwitcher::resume`]. Default 5 (half a second of scans at 10 Hz).
     pub resume_confirmations: u32,
@@ -310,15 +310,6 @@ pub struct LaneSwitchConfig {
     /// `spacing_tolerance`). Rows not believed count as no row: the robot stops after
     /// `max_blind_distance_m` (`no_rows`). Default 0.15; 0.25 (or more) leaves `spacing_tolerance` alone.
     pub following_spacing_tolerance: f64,
-    /// Largest lateral offset, m, between the centre line of a detection and the line followed before
-    /// a stop that clears by itself, for the detection to count towards the resume
-    /// (`resume_confirmations`; the heading keeps `entry_heading_tolerance_rad`). The robot stood
-    /// still after at most `max_blind_distance_m` on odometry: the lane it followed is where it was
-    /// within centimetres (the 2 s dropouts of `fault-lidar-dropout` resume 1-4 cm from it). A tracked
-    /// detection further off resets the detector, which searches again: soak seed 482 resumed on a
-    /// fresh fit 10-15 cm off its lane after scans stamped 0.78 s off, that fit wandered onto the next
-    /// lattice while the robot drove, and the robot ran over a plant. Default 0.08.
-    pub resume_lateral_tolerance_m: f64,
     /// Largest heading of a lane's centre line relative to the robot, rad, for the robot to start
     /// following it from `acquiring`. A robot is set down in its lane roughly along it (the soak
     /// within ±3°, the recovery runs at ±8°); a lane further off is a fit that is not the crop's
@@ -372,7 +363,6 @@ impl Default for LaneSwitchConfig {
             bias_suspect_rad_per_m: 0.01,
             row_bias_stands: 0,
             following_spacing_tolerance: 0.15,
-            resume_lateral_tolerance_m: 0.08,
             max_start_heading_rad: 0.2,
         }
     }
@@ -415,12 +405,6 @@ impl LaneSwitchConfig {
         check_range("lane_switch.max_line_jump_m", self.max_line_jump_m, 0.01, 10.0)?;
         check_range("lane_switch.resume_confirmations", f64::from(self.resume_confirmations), 0.0, 1000.0)?;
         check_range("lane_switch.max_start_heading_rad", self.max_start_heading_rad, 0.01, 1.0)?;
-        check_range(
-            "lane_switch.resume_lateral_tolerance_m",
-            self.resume_lateral_tolerance_m,
-            0.01,
-            self.row_spacing_m,
-        )?;
         check_range("lane_switch.gap_margin_m", self.gap_margin_m, 0.0, 10.0)?;
         check_range(
             "lane_switch.gap_rows",
@@ -1122,7 +1106,7 @@ impl LaneSwitcher {
             }
             Mode::Entering => self.enter(odom, detection),
             Mode::Stopped { reason } if reason.clears_by_itself() && self.cfg.resume_confirmations > 0 => {
-                reset_detector = self.recover(odom, detection);
+                self.recover(odom, detection);
             }
             Mode::Done | Mode::Stopped { .. } => {}
         }
@@ -1395,27 +1379,21 @@ impl LaneSwitcher {
     /// was followed (a step without a scan keeps the count) and follows again after
     /// `resume_confirmations` of them. The row end is forgotten: the detector reports it again (a
     /// stop just before the row end resumes on `end_of_row` detections and goes on to clear it).
-    /// Returns true when the detector should search again: it tracks a lattice whose centre line lies
-    /// off the lane followed (a fit at rest does not walk back by itself).
-    fn recover(&mut self, odom: &Pose2, detection: Option<&Detection>) -> bool {
-        let Some(d) = detection else { return false };
-        let rows_seen = matches!(d.status, RowStatus::Tracking | RowStatus::EndOfRow);
-        let offset = self.reference.centre_line(d).and_then(|line| {
-            let seen = odom.compose(&line.pose());
-            self.reference.path().map(|path| path.project(&seen, self.s_hint_m))
-        });
-        let same_lane = rows_seen
-            && self.reference.centre_line(d).is_some()
-            && offset.is_none_or(|f| {
-                f.lateral_m.abs() <= self.cfg.resume_lateral_tolerance_m
-                    && f.heading_rad.abs() <= self.cfg.entry_heading_tolerance_rad
+    fn recover(&mut self, odom: &Pose2, detection: Option<&Detection>) {
+        let Some(d) = detection else { return };
+        let same_lane = matches!(d.status, RowStatus::Tracking | RowStatus::EndOfRow)
+            && self.reference.centre_line(d).is_some_and(|line| {
+                let seen = odom.compose(&line.pose());
+                self.reference.path().is_none_or(|path| {
+                    let f = path.project(&seen, self.s_hint_m);
+                    f.lateral_m.abs() <= self.cfg.entry_lateral_tolerance_m
+                        && f.heading_rad.abs() <= self.cfg.entry_heading_tolerance_rad
+                })
             });
         self.resume_agree = if same_lane { self.resume_agree.saturating_add(1) } else { 0 };
         if self.resume_agree >= self.cfg.resume_confirmations && self.reference.update(d, odom) {
             self.enter_following(odom);
         }
-        d.status == RowStatus::Tracking
-            && offset.is_some_and(|f| f.lateral_m.abs() > self.cfg.resume_lateral_tolerance_m)
     }
 
     /// The distance along the rows from `base_link` to the row end that a detection implies, m: the
@@ -1623,24 +1601,6 @@ mod tests {
         let g = sw.update(&at, Some(&rows(0.6, 0.0)));
         assert_eq!(g.mode, Mode::Following);
         assert!(g.speed_mps > 0.0);
-    }
-
-    #[test]
-    fn a_stop_does_not_resume_on_a_fit_off_the_lane_followed_and_searches_again() {
-        // 12 cm off the line followed before the stop (soak seed 482: a fresh fit 10-15 cm off after
-        // refused scans): over `resume_lateral_tolerance_m` (8 cm), never counted, the detector reset.
-        let mut sw = stopped_by_lost_rows(LaneSwitchConfig::default());
-        let at = Pose2::new(2.0, 0.0, 0.0);
-        for k in 0..8 {
-            let g = sw.update(&at, Some(&rows(0.2 + 0.1 * f64::from(k), 0.12)));
-            assert_eq!((g.mode, g.reset_detector), (Mode::Stopped { reason: StopReason::RowsLost }, true));
-        }
-        // 5 cm off: counted, no new search, and the fifth resumes.
-        for k in 0..5 {
-            let g = sw.update(&at, Some(&rows(1.0 + 0.1 * f64::from(k), 0.05)));
-            assert!(!g.reset_detector, "{g:?}");
-        }
-        assert_eq!(sw.mode(), Mode::Following);
     }
 
     #[test]
