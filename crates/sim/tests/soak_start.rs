@@ -63,3 +63,31 @@ fn a_grown_corn_start_with_the_planted_spacing_stands_in_the_inter_row() {
     let o = run_planted(37, "grown corn 10.0 m x 14 rows 0.70 m");
     assert_eq!((o.crop_contacts, o.unsafe_commands, o.end.as_str()), (0, 0, "done"), "{o:?}");
 }
+
+#[test]
+fn a_closed_canopy_fit_at_twice_the_spacing_is_searched_again_not_followed() {
+    // The same start as above with the defaults (no planted spacing for the detector): the lane
+    // switcher, which knows the field's spacing, resets the detector while its lattice is 1.38 m
+    // instead of letting the fit wander into its 25 % band (20 plants); a fresh search starts on the
+    // crop's lattice and the mission is done.
+    let o = run_seed(439, "grown corn 14.2 m x 6 rows 0.71 m");
+    assert_eq!((o.crop_contacts, o.unsafe_commands, o.end.as_str()), (0, 0, "done"), "{o:?}");
+}
+
+#[test]
+fn a_start_lane_far_off_the_robot_heading_is_not_followed() {
+    // Young corn with every row missing 2.9-6.5 m: a metre of row in view, the search's lane 26° off
+    // the robot, which turned onto it (6 plants at 0.2 m). Over `max_start_heading_rad` (0.2 rad) the
+    // robot waits for a better lane instead (here, none comes: it never starts).
+    let mut case = soak_case(337);
+    assert!(
+        case.scenario.summary.starts_with("young corn 12.0 m x 6 rows 0.76 m"),
+        "{}",
+        case.scenario.summary
+    );
+    let o = run_case(&case).expect("runs");
+    assert_eq!((o.crop_contacts, o.unsafe_commands), (0, 0), "{o:?}");
+    case.navigator.lane_switch.max_start_heading_rad = 1.0;
+    let before = run_case(&case).expect("runs");
+    assert!(before.crop_contacts > 0, "the case no longer provokes the failure: {before:?}");
+}

@@ -232,7 +232,10 @@ pub struct LaneSwitchConfig {
     /// for its rows to be believed. Default 0.25: a detector locked on half or twice the row period
     /// (the two crests of a closed canopy) is 50 % off or more, while its online estimate stays within
     /// 10 % on the simulated fields (soak, issue 6). Rows not believed count as no row: the robot does
-    /// not start, stops after `max_blind_distance_m`, or does not confirm a new lane.
+    /// not start, stops after `max_blind_distance_m`, or does not confirm a new lane. While acquiring,
+    /// a tracked lattice outside it also resets the detector, which searches again: its fit, left to
+    /// itself at rest, wanders (soak seeds 439 and 982: twice the spacing, then 20° off the rows
+    /// within 5 s as the spacing shrank into the band, and the robot drove along it).
     pub spacing_tolerance: f64,
     /// Largest lateral jump, at the robot and 1.5 m ahead of it, of the detected centre line from
     /// the one being followed, m. A larger one (the rows of a neighbouring lane, seen for a scan) is not believed and counts
@@ -307,6 +310,13 @@ pub struct LaneSwitchConfig {
     /// `spacing_tolerance`). Rows not believed count as no row: the robot stops after
     /// `max_blind_distance_m` (`no_rows`). Default 0.15; 0.25 (or more) leaves `spacing_tolerance` alone.
     pub following_spacing_tolerance: f64,
+    /// Largest heading of a lane's centre line relative to the robot, rad, for the robot to start
+    /// following it from `acquiring`. A robot is set down in its lane roughly along it (the soak
+    /// within ±3°, the recovery runs at ±8°); a lane further off is a fit that is not the crop's
+    /// lattice: tall weeds filling the view (soak seed 31: 15°), a metre of row before a gap across
+    /// every row (337: 26°), a closed canopy's fit wandering at rest (439, 982: 19-21°). Such a lane
+    /// resets the detector, which searches again, and the robot waits. Default 0.2 (11.5°).
+    pub max_start_heading_rad: f64,
 }
 
 impl Default for LaneSwitchConfig {
@@ -353,6 +363,7 @@ impl Default for LaneSwitchConfig {
             bias_suspect_rad_per_m: 0.01,
             row_bias_stands: 0,
             following_spacing_tolerance: 0.15,
+            max_start_heading_rad: 0.2,
         }
     }
 }
@@ -393,6 +404,7 @@ impl LaneSwitchConfig {
         check_range("lane_switch.spacing_tolerance", self.spacing_tolerance, 0.01, 10.0)?;
         check_range("lane_switch.max_line_jump_m", self.max_line_jump_m, 0.01, 10.0)?;
         check_range("lane_switch.resume_confirmations", f64::from(self.resume_confirmations), 0.0, 1000.0)?;
+        check_range("lane_switch.max_start_heading_rad", self.max_start_heading_rad, 0.01, 1.0)?;
         check_range("lane_switch.gap_margin_m", self.gap_margin_m, 0.0, 10.0)?;
         check_range(
             "lane_switch.gap_rows",
@@ -999,16 +1011,27 @@ impl LaneSwitcher {
         // InvalidInput detections carry nothing; they count as no detection.
         let detection = detection.filter(|d| d.status != RowStatus::InvalidInput);
         // Rows at a spacing this field does not have belong to no lane of it: not believed.
+        let raw_disagrees =
+            detection.is_some_and(|d| d.status == RowStatus::Tracking && !self.spacing_agrees(d));
         let believed = detection
             .map(|d| if self.spacing_agrees(d) { *d } else { Detection { left: None, right: None, ..*d } });
         let detection = believed.as_ref();
         match self.mode {
             Mode::Acquiring => {
+                let along_robot = detection.is_none_or(|d| {
+                    self.reference
+                        .centre_line(d)
+                        .is_none_or(|line| line.heading_rad.abs() <= self.cfg.max_start_heading_rad)
+                });
                 if let Some(d) = detection
                     && d.status == RowStatus::Tracking
+                    && along_robot
                     && self.reference.update(d, odom)
                 {
                     self.enter_following(odom);
+                } else if raw_disagrees || !along_robot {
+                    // A wrong lattice is not tracked until it drifts into agreement: search afresh.
+                    reset_detector = true;
                 }
             }
             Mode::Following => {
@@ -1770,6 +1793,47 @@ mod tests {
             assert_eq!(g.speed_mps, sw.config().cruise_speed_mps, "at {x}");
         }
         assert!(sw.bias_suspected());
+    }
+
+    #[test]
+    fn a_lane_far_off_the_robot_heading_is_not_started_on() {
+        // 15° off the robot (soak seed 31: tall weeds filling the view at the start), over
+        // `max_start_heading_rad` (0.2 rad): searched again; 8° (the recovery runs) is started on.
+        let turned = |t: f64, deg: f64| {
+            let h = deg.to_radians();
+            let row = |offset_m: f64| RowEstimate {
+                line: [0.0, offset_m, 3.0 * h.cos(), offset_m + 3.0 * h.sin()],
+                offset_m,
+                heading_rad: h,
+                curvature_per_m: 0.0,
+                confidence: 1.0,
+            };
+            Detection { left: Some(row(0.375)), right: Some(row(-0.375)), ..rows(t, 0.0) }
+        };
+        let mut sw = LaneSwitcher::new(LaneSwitchConfig::default(), ReferenceConfig::default()).unwrap();
+        let at = Pose2::new(1.0, 0.0, 0.0);
+        for k in 0..5 {
+            let g = sw.update(&at, Some(&turned(0.1 * f64::from(k), 15.0)));
+            assert_eq!((g.mode, g.reset_detector, g.speed_mps), (Mode::Acquiring, true, 0.0));
+        }
+        let g = sw.update(&at, Some(&turned(0.5, 8.0)));
+        assert_eq!((g.mode, g.reset_detector), (Mode::Following, false));
+    }
+
+    #[test]
+    fn a_lattice_at_another_spacing_is_searched_again_while_acquiring() {
+        // Twice the planted 0.75 m (soak seeds 439, 982: the start-up search took a closed canopy for a
+        // lattice of every second row); left to itself the fit wandered at rest into the 25 % band,
+        // 20° off the rows, and the robot followed it.
+        let double = |t: f64| Detection { row_spacing_m: Some(1.5), ..rows(t, 0.0) };
+        let mut sw = LaneSwitcher::new(LaneSwitchConfig::default(), ReferenceConfig::default()).unwrap();
+        let at = Pose2::new(1.0, 0.0, 0.0);
+        let g = sw.update(&at, Some(&double(0.0)));
+        assert_eq!((g.mode, g.reset_detector, g.speed_mps), (Mode::Acquiring, true, 0.0));
+        // No detection, or one the switcher takes, is no reason to search again.
+        assert!(!sw.update(&at, None).reset_detector);
+        let g = sw.update(&at, Some(&rows(0.1, 0.0)));
+        assert_eq!((g.mode, g.reset_detector), (Mode::Following, false));
     }
 
     #[test]
