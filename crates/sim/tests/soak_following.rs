@@ -6,8 +6,8 @@
 //! `croprow_core::odometry::DriftConfig::enabled`), or the detector's shear term (`detector.shear_enabled`,
 //! on by default: the lane fit models the map's unsensed sideways motion; off for the run that must
 //! still fail), or the detector's slide test with the MPC planning from the course over the ground
-//! (`detector.shear_window_m` 0.5 and `shear_max_per_m` 0.12; off by default, the run that must still
-//! fail). Seed 530 is the exception: the defaults (the
+//! (`detector.shear_window_m` 0.5 and `shear_max_per_m` 0.12, the defaults; the run that must still
+//! fail has it off: window 0, the shear term's bound 0.2). Seed 530 is the exception: the defaults (the
 //! detector ignoring returns above the canopy, the EKF's bias check) now drive it clean without it.
 
 use croprow_sim::Scenario;
@@ -30,14 +30,20 @@ fn run_with_drift(case: &Case, enabled: bool) -> Outcome {
     run_case(&case).expect("runs")
 }
 
-/// Runs `case` with the defaults (it must run over plants) and with the slide test on (it must not).
+/// `case` with the slide test off: the shear term alone, as before the test was on by default.
+fn without_slide_test(case: &Case) -> Case {
+    let mut off = case.clone();
+    off.navigator.detector.shear_window_m = 0.0;
+    off.navigator.detector.shear_max_per_m = 0.2;
+    off
+}
+
+/// Runs `case` with the slide test off (it must run over plants) and with the defaults, where the
+/// slide test is on (it must not).
 fn safe_with_slide_test(case: &Case) -> Outcome {
-    let before = run_case(case).expect("runs");
+    let before = run_case(&without_slide_test(case)).expect("runs");
     assert!(before.crop_contacts > 0, "the case no longer provokes the failure: {before:?}");
-    let mut on = case.clone();
-    on.navigator.detector.shear_window_m = 0.5;
-    on.navigator.detector.shear_max_per_m = 0.12;
-    let outcome = run_case(&on).expect("runs");
+    let outcome = run_case(case).expect("runs");
     assert_eq!((outcome.crop_contacts, outcome.unsafe_commands), (0, 0), "{outcome:?}");
     outcome
 }
@@ -57,14 +63,15 @@ fn a_slide_on_young_corn_is_found_and_steered_out() {
     safe_with_slide_test(&first_lane(744, "young corn 10.7 m x 7 rows 0.72 m apart"));
 }
 
-/// Runs `case` with the detector's shear term off (it must run over plants) and with the defaults,
-/// where the shear term is on (it must not).
+/// Runs `case` with the detector's shear term off (it must run over plants) and on, as the shear term
+/// alone (the slide test off), where it must not.
 fn safe_with_shear(case: &Case) -> Outcome {
+    let case = without_slide_test(case);
     let mut off = case.clone();
     off.navigator.detector.shear_enabled = false;
     let before = run_case(&off).expect("runs");
     assert!(before.crop_contacts > 0, "the case no longer provokes the failure: {before:?}");
-    let outcome = run_case(case).expect("runs");
+    let outcome = run_case(&case).expect("runs");
     assert_eq!((outcome.crop_contacts, outcome.unsafe_commands), (0, 0), "{outcome:?}");
     outcome
 }
@@ -169,9 +176,7 @@ fn a_tall_weed_patch_is_no_slide_for_the_slide_test() {
     // with the test off (< 1 cm mean, < 3 cm max).
     let text = include_str!("../scenarios/fault-weed-patch.toml");
     let scenario = Scenario::from_toml_str(text).expect("parses");
-    let mut nav = closed_loop::sim_navigator();
-    nav.detector.shear_window_m = 0.5;
-    nav.detector.shear_max_per_m = 0.12;
+    let nav = closed_loop::sim_navigator();
     let mut lp =
         ClosedLoop::new(&scenario, &nav, RunConfig { lanes: 1, ..RunConfig::default() }).expect("builds");
     let mut declared = 0;
@@ -187,15 +192,13 @@ fn a_tall_weed_patch_is_no_slide_for_the_slide_test() {
 
 #[test]
 fn a_fault_free_grown_corn_field_has_no_false_slide() {
-    // Fault-free grown corn, three lanes (soak seed 765), with the slide test on. Its comparisons
+    // Fault-free grown corn, three lanes (soak seed 765), with the slide test (the defaults). Its comparisons
     // scatter about none by ±0.02 m/m here; 1.8 m into the first lane they read 0.045 for half a
     // metre, and the slide so declared was applied to every stored centroid by its age: the lane
     // jumped 8 cm, the robot swung 0.19 rad after it and the run ended `wrong_lane` over 22 plants. A
     // declared slide now moves the centroids only by the distance driven since it began.
-    let mut case = soak_case(765);
+    let case = soak_case(765);
     assert!(case.scenario.summary.starts_with("grown corn 11.5 m x 8 rows 0.71 m apart"));
-    case.navigator.detector.shear_window_m = 0.5;
-    case.navigator.detector.shear_max_per_m = 0.12;
     let outcome = run_case(&case).expect("runs");
     assert_eq!((outcome.crop_contacts, outcome.unsafe_commands), (0, 0), "{outcome:?}");
 }

@@ -66,7 +66,7 @@ pub struct Args {
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Soak: navigator override `KEY=VALUE` applied to every run (`detector.*`, `lane_switch.*`, ...;
-    /// values are TOML), e.g. `--set detector.shear_window_m=0.5` to soak an opt-in. Repeatable.
+    /// values are TOML), e.g. `--set detector.shear_window_m=0` to soak with the slide test off. Repeatable.
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
 }
