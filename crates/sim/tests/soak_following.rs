@@ -88,8 +88,10 @@ fn a_late_slide_on_young_soybean_is_taken_out_of_the_lane_fit() {
     safe_with_shear(&first_lane(187, "young soybean 12.6 m x 7 rows 0.71 m apart"));
 }
 
-/// Runs `case` without the drift estimator (it must run over plants) and with it (it must not).
+/// Runs `case` with the slide test off (the estimator was built beside the shear term alone), without
+/// the drift estimator (it must run over plants) and with it (it must not).
 fn safe_with_drift_estimate(case: &Case) -> Outcome {
+    let case = &without_slide_test(case);
     let before = run_with_drift(case, false);
     assert!(before.crop_contacts > 0, "the case no longer provokes the failure: {before:?}");
     let outcome = run_with_drift(case, true);
