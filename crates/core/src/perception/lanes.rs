@@ -1795,10 +1795,16 @@ mod tests {
         // half its 0.5 m window 0.25 m later; it declares the slide by 1.4 m driven and, from 2 m on,
         // measures it within 0.02 m/m at every scan.
         let (_, _, _, verdicts) = drive_with_slide_test(0.1, &slide_test_on());
+        assert_slide_found(&verdicts, 1.4, 0.1, 0.02);
+    }
+
+    /// Asserts the slide test declared a slide by `by_m` driven and, from 2 m on, measured it within
+    /// `tolerance` of `slide_per_m` at every scan.
+    fn assert_slide_found(verdicts: &[(f64, Option<f64>)], by_m: f64, slide_per_m: f64, tolerance: f64) {
         let first = verdicts.iter().find(|(_, k)| k.is_some()).map(|(x, _)| *x);
-        assert!(first.is_some_and(|x| x <= 1.4), "{verdicts:?}");
+        assert!(first.is_some_and(|x| x <= by_m), "{verdicts:?}");
         for (x, k) in verdicts.iter().filter(|(x, _)| *x >= 2.0) {
-            assert!(k.is_some_and(|k| (k - 0.1).abs() < 0.02), "{x}: {k:?}");
+            assert!(k.is_some_and(|k| (k - slide_per_m).abs() < tolerance), "{x}: {k:?}");
         }
     }
 
@@ -1868,11 +1874,7 @@ mod tests {
         // The same turn with a slide of 0.1 m/m from the start: declared by 1.5 m driven and, from 2 m
         // on, within 0.04 m/m of the slide (measured 0.065-0.08: the turn term takes up a part).
         let (verdicts, _) = drive_with_turn_and_slide(0.04, 0.1, 0.0, &slide_test_on());
-        let first = verdicts.iter().find(|(_, k)| k.is_some()).map(|(x, _)| *x);
-        assert!(first.is_some_and(|x| x <= 1.5), "{verdicts:?}");
-        for (x, k) in verdicts.iter().filter(|(x, _)| *x >= 2.0) {
-            assert!(k.is_some_and(|k| (k - 0.1).abs() < 0.04), "{x}: {k:?}");
-        }
+        assert_slide_found(&verdicts, 1.5, 0.1, 0.04);
     }
 
     #[test]
