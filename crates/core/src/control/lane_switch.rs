@@ -715,6 +715,14 @@ pub struct LaneSwitcher {
     row_headings_len: usize,
     /// The rows turned in `odom` over the latest 2 m followed faster than `bias_suspect_rad_per_m`.
     bias_suspect: bool,
+    /// Odometer reading where the current run of `bias_suspect` began, m.
+    bias_suspect_since_m: Option<f64>,
+    /// `bias_suspect` held for `BIAS_HOLD_M` on end at some point since the lane was entered or the
+    /// last stand: it also decides the stand at the row end. A bias error stays until the robot stands
+    /// still, but the rows' turn in `odom` need not: a fit that takes part of it for a sideways slide
+    /// (the slide test) straightens them again (soak seed 699: suspected over 5 m in mid-lane, not at
+    /// its end). Short runs of suspicion (a fit's wobble, 0.5-1.5 m on fault-free seed 765) do not count.
+    bias_suspected_in_lane: bool,
     /// Stands for a suspected bias left in this lane (`row_bias_stands`).
     bias_stands_left: u32,
     dwell: Dwell,
@@ -723,6 +731,8 @@ pub struct LaneSwitcher {
 /// Distance over which the followed rows' turn in `odom` is measured for the bias suspicion, m: a
 /// fit's heading wobbles by about 0.01 rad, so over 2 m the rate is good to 0.005-0.007 rad/m.
 const BIAS_SUSPECT_WINDOW_M: f64 = 2.0;
+/// Distance a bias suspicion must hold without a break to count at the row end after it lapsed, m.
+const BIAS_HOLD_M: f64 = 2.5;
 /// Spacing of the row directions kept for it, m, and how many are kept (the window and one more).
 const ROW_HEADING_STEP_M: f64 = 0.25;
 const ROW_HEADINGS: usize = 9;
@@ -765,6 +775,8 @@ impl LaneSwitcher {
             row_headings: [(0.0, 0.0); ROW_HEADINGS],
             row_headings_len: 0,
             bias_suspect: false,
+            bias_suspect_since_m: None,
+            bias_suspected_in_lane: false,
             bias_stands_left: 0,
             dwell: Dwell::Off,
             cfg,
@@ -1040,6 +1052,8 @@ impl LaneSwitcher {
                     // says nothing about the bias the EKF has now.
                     self.row_headings_len = 0;
                     self.bias_suspect = false;
+                    self.bias_suspect_since_m = None;
+                    self.bias_suspected_in_lane = false;
                 }
                 if matches!(self.dwell, Dwell::Holding(_)) {
                     return self.guidance(reset_detector, odom);
@@ -1273,6 +1287,10 @@ impl LaneSwitcher {
         if let Some((at_m, yaw)) = window {
             let rate = wrap_angle(heading - yaw) / (self.odometer_m - at_m);
             self.bias_suspect = rate.abs() > self.cfg.bias_suspect_rad_per_m;
+            self.bias_suspect_since_m =
+                if self.bias_suspect { self.bias_suspect_since_m.or(Some(self.odometer_m)) } else { None };
+            self.bias_suspected_in_lane |=
+                self.bias_suspect_since_m.is_some_and(|since| self.odometer_m - since >= BIAS_HOLD_M);
         }
     }
 
@@ -1291,6 +1309,8 @@ impl LaneSwitcher {
         self.receding = 0;
         self.row_headings_len = 0;
         self.bias_suspect = false;
+        self.bias_suspect_since_m = None;
+        self.bias_suspected_in_lane = false;
         self.bias_stands_left = self.cfg.row_bias_stands;
         self.dwell = Dwell::Off;
         self.s_hint_m = self.reference.path().map_or(0.0, |p| p.project(odom, 0.0).s_m);
@@ -1343,7 +1363,8 @@ impl LaneSwitcher {
             self.mode = Mode::ClearingRowEnd;
             // Rows that turned in `odom` mean the heading drifts: stand still for the EKF to learn
             // the gyro bias at rest before the blind drive and the pivots.
-            let dwell = self.bias_suspect && self.cfg.bias_dwell_s > 0.0 && self.now_s.is_some();
+            let suspected = self.bias_suspect || self.bias_suspected_in_lane;
+            let dwell = suspected && self.cfg.bias_dwell_s > 0.0 && self.now_s.is_some();
             self.dwell = if dwell { Dwell::Braking } else { Dwell::Off };
             return;
         }
