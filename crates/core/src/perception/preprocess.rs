@@ -36,9 +36,9 @@ const ABOVE_TOP_M: f32 = 0.5;
 const VOXEL_SLOTS: usize = 1 << 16;
 
 /// The clutter test: counts the cropped returns per voxel in hashed tables allocated once. Dust and
-/// insects are sparse in the air (a return per 10-20 voxels at the soak's densest, 600 a scan), a
-/// surface hit by the scanner is dense along each ring (about seven returns per 0.1 m at 4 m), so a
-/// return whose voxel holds fewer than `min_points` returns is clutter. Two grids half a voxel apart
+/// insects are sparse in the air (one return per 2-3 voxels of 0.2 m at the soak's densest, 600 a
+/// scan), a surface hit by the scanner is dense along each ring (about fourteen returns per 0.2 m at
+/// 4 m), so a return whose voxel holds fewer than `min_points` returns is clutter. Two grids half a voxel apart
 /// count the returns, and a return is kept when either of its voxels is dense: a surface lying on a
 /// voxel face of one grid (the ground at z = 0) would otherwise be split between two voxels and thinned.
 #[derive(Debug, Clone)]
@@ -63,10 +63,17 @@ impl Clutter {
     }
 
     /// Drops from `points` every point whose voxels (side `voxel_m`) in both grids hold fewer than
-    /// `min_points` points; keeps the order of the rest.
-    fn retain_dense(&mut self, points: &mut Vec<[f32; 3]>, voxel_m: f32, min_points: usize) {
+    /// `min_points` points, when those are at least `min_share` of the points; keeps the order of the
+    /// rest. Returns how many were dropped.
+    fn retain_dense(
+        &mut self,
+        points: &mut Vec<[f32; 3]>,
+        voxel_m: f32,
+        min_points: usize,
+        min_share: f32,
+    ) -> usize {
         if min_points <= 1 || points.is_empty() {
-            return;
+            return 0;
         }
         self.counts.iter_mut().for_each(|c| *c = 0);
         let inv = 1.0 / voxel_m;
@@ -81,7 +88,12 @@ impl Clutter {
         let dense = |p: &[f32; 3], g| {
             counts.get(Self::slot(p, inv, g)).is_some_and(|&c| usize::from(c) >= min_points)
         };
+        let lone = points.iter().filter(|p| !(dense(p, 0) || dense(p, 1))).count();
+        if (lone as f32) < min_share * points.len() as f32 {
+            return 0;
+        }
         points.retain(|p| dense(p, 0) || dense(p, 1));
+        lone
     }
 }
 
@@ -186,6 +198,7 @@ impl Preprocessor {
                 &mut self.cropped,
                 config.clutter_voxel_m as f32,
                 config.clutter_min_points,
+                config.clutter_min_share as f32,
             );
             self.level_cropped(t_s, f.t, config);
         }
@@ -357,14 +370,27 @@ mod tests {
 
     #[test]
     fn a_surface_on_a_voxel_face_is_kept_whole() {
-        // 200 ground returns 1.4 cm apart (a ring 4 m away) a quarter 3 mm above z = 0 and the rest 3 mm below, across a face of the
+        // 200 ground returns 1.4 cm apart (a ring 4 m away) an eighth 3 mm above z = 0 and the rest 3 mm below, across a face of the
         // first grid's voxels: none may be dropped as clutter.
         let cfg = DetectorConfig::default();
         let mut points: Vec<[f32; 3]> = (0..200)
-            .map(|i| [2.0 + 0.014 * i as f32, 0.3, if i % 4 == 0 { 0.003 } else { -0.003 }])
+            .map(|i| [2.0 + 0.014 * i as f32, 0.3, if i % 8 == 0 { 0.003 } else { -0.003 }])
             .collect();
         let mut clutter = Clutter::new();
-        clutter.retain_dense(&mut points, cfg.clutter_voxel_m as f32, cfg.clutter_min_points);
+        // Every lone return counts: the share test would otherwise keep a thinned face.
+        clutter.retain_dense(&mut points, cfg.clutter_voxel_m as f32, cfg.clutter_min_points, 0.0);
         assert_eq!(points.len(), 200);
+    }
+
+    #[test]
+    fn a_few_lone_returns_are_kept() {
+        // The fixture plus 2 lone returns (2 % of the scan, under the 3 % share): a young crop's
+        // sparse leaf edges, not dust; every return stays.
+        let mount = Mount::default();
+        let pts: Vec<Point3> = ground_with_plant_tops(&mount).into_iter().chain(dust(&mount, 2)).collect();
+        let cfg = DetectorConfig::default();
+        let mut pre = Preprocessor::new(8, &cfg);
+        pre.run(0.0, &pts, &mount, &cfg, PlaneRule::Percentile);
+        assert_eq!(pre.cropped.len(), 102);
     }
 }
