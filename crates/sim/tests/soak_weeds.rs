@@ -1,10 +1,12 @@
 //! Soak seeds (issue 6) whose row fit was pulled by canopy that is not a row seen through the edge of a
-//! row's gate: tall weed clumps between the rows, and the outer leaves of a field's last row. Each test
+//! row's gate: tall weed clumps between the rows, and the outer leaves of a field's last row; and by
+//! returns that are not canopy at all, dust and insects floating above a young crop. Each test
 //! replays the seed's case as `soak_case` draws it, faults included, and asserts no crop contact and no
 //! unsafe command, and that the same case with every bin kept still touches plants; the summary check
 //! catches a generator that changed. Guards
 //! `DetectorConfig::core_fraction` (the detector leaves out bins whose canopy peaks outside the gate),
-//! opt-in (off by default, see its doc): the guarded run sets it to 0.1.
+//! opt-in (off by default, see its doc): the guarded run sets it to 0.1; and the clutter test of the
+//! preprocessing (`DetectorConfig::clutter_min_points`, on by default).
 
 use croprow_sim::experiment::soak::{Outcome, run_case, soak_case};
 
@@ -45,5 +47,25 @@ fn tall_weeds_in_view_after_a_headland_turn_do_not_pull_the_fit() {
     // first turn with the patch in view, the fit took the weed clumps reaching into the rows' gates
     // and turned 6-10° off the rows (6 contacts).
     let o = run_seed(50, "young corn 10.2 m x 7 rows 0.78 m");
+    assert_eq!((o.crop_contacts, o.unsafe_commands), (0, 0), "{o:?}");
+}
+
+#[test]
+fn dust_over_a_young_crop_does_not_lift_the_canopy_plane() {
+    // Young corn with 585 spurious returns a scan 0.8-1.4 m up over x = 4.6-7.2 m: 6 % of the cropped
+    // returns, so the 95th height percentile jumped from the crop's tops (0.3 m) into the dust
+    // (0.9 m), the canopy plane rose over the crop and the fit followed the dust (8 contacts, second
+    // lane). The clutter test drops returns alone in their voxel before the plane is placed.
+    let case = soak_case(148);
+    assert!(
+        case.scenario.summary.starts_with("young corn 13.7 m x 10 rows 0.73 m"),
+        "{}",
+        case.scenario.summary
+    );
+    let mut unguarded = case.clone();
+    unguarded.navigator.detector.clutter_min_points = 0;
+    let before = run_case(&unguarded).expect("runs");
+    assert!(before.crop_contacts > 0, "the case no longer provokes the failure: {before:?}");
+    let o = run_case(&case).expect("runs");
     assert_eq!((o.crop_contacts, o.unsafe_commands), (0, 0), "{o:?}");
 }

@@ -8,8 +8,10 @@
 //! it halfway between robust ground and canopy-top levels (5th and 95th height percentiles), which keeps
 //! low weeds and ground noise out even when most returns come from the ground, and drops returns
 //! floating more than [`ABOVE_TOP_M`] above the canopy top (dust, insects). In the default mode the
-//! cropped points are first levelled by the tilt the scan shows ([`super::level`]), so that a LiDAR off
-//! its configured mount still puts the plane parallel to the ground.
+//! cropped points are first cleared of clutter (returns alone in their voxel: dust and insects, which
+//! would otherwise lift the 95th percentile off a young crop; see [`Clutter`]) and levelled by the tilt
+//! the scan shows ([`super::level`]), so that a LiDAR off its configured mount still puts the plane
+//! parallel to the ground.
 
 use crate::geometry::{Mount, Point3};
 
@@ -27,6 +29,73 @@ const Z_BINS: usize = 500;
 /// start-up heading by 10°). Not lower: 0.3 m cut into the tops of a grown soybean canopy and a lane
 /// re-entry was refused as the wrong lane (`soak_acquire`, seed 11).
 const ABOVE_TOP_M: f32 = 0.5;
+
+/// Slots of the clutter test's voxel count table (a power of two, for the mask). A scan's cropped
+/// returns occupy a few thousand voxels, so two voxels rarely share a slot; when they do, the slot's
+/// count is their sum, which can only keep a return that should have gone, never drop one.
+const VOXEL_SLOTS: usize = 1 << 16;
+
+/// The clutter test: counts the cropped returns per voxel in hashed tables allocated once. Dust and
+/// insects are sparse in the air (one return per 2-3 voxels of 0.2 m at the soak's densest, 600 a
+/// scan), a surface hit by the scanner is dense along each ring (about fourteen returns per 0.2 m at
+/// 4 m), so a return whose voxel holds fewer than `min_points` returns is clutter. Two grids half a voxel apart
+/// count the returns, and a return is kept when either of its voxels is dense: a surface lying on a
+/// voxel face of one grid (the ground at z = 0) would otherwise be split between two voxels and thinned.
+#[derive(Debug, Clone)]
+struct Clutter {
+    /// The two grids' count tables, [`VOXEL_SLOTS`] each.
+    counts: Vec<u16>,
+}
+
+impl Clutter {
+    fn new() -> Self {
+        Self { counts: vec![0; 2 * VOXEL_SLOTS] }
+    }
+
+    /// Table index, in grid `g` (0 or 1, shifted by half a voxel), of the voxel of side `inv_m`⁻¹
+    /// holding `p`.
+    fn slot(p: &[f32; 3], inv_m: f32, g: usize) -> usize {
+        let shift = 0.5 * g as f32;
+        let [i, j, k] = p.map(|v| (v * inv_m + shift).floor() as i32 as u32);
+        // Spatial hash (Teschner et al. 2003); wrapping products mix the three indices.
+        let h = i.wrapping_mul(73_856_093) ^ j.wrapping_mul(19_349_663) ^ k.wrapping_mul(83_492_791);
+        g * VOXEL_SLOTS + (h as usize & (VOXEL_SLOTS - 1))
+    }
+
+    /// Drops from `points` every point whose voxels (side `voxel_m`) in both grids hold fewer than
+    /// `min_points` points, when those are at least `min_share` of the points; keeps the order of the
+    /// rest. Returns how many were dropped.
+    fn retain_dense(
+        &mut self,
+        points: &mut Vec<[f32; 3]>,
+        voxel_m: f32,
+        min_points: usize,
+        min_share: f32,
+    ) -> usize {
+        if min_points <= 1 || points.is_empty() {
+            return 0;
+        }
+        self.counts.iter_mut().for_each(|c| *c = 0);
+        let inv = 1.0 / voxel_m;
+        for p in points.iter() {
+            for g in 0..2 {
+                if let Some(c) = self.counts.get_mut(Self::slot(p, inv, g)) {
+                    *c = c.saturating_add(1);
+                }
+            }
+        }
+        let counts = &self.counts;
+        let dense = |p: &[f32; 3], g| {
+            counts.get(Self::slot(p, inv, g)).is_some_and(|&c| usize::from(c) >= min_points)
+        };
+        let lone = points.iter().filter(|p| !(dense(p, 0) || dense(p, 1))).count();
+        if (lone as f32) < min_share * points.len() as f32 {
+            return 0;
+        }
+        points.retain(|p| dense(p, 0) || dense(p, 1));
+        lone
+    }
+}
 
 /// `base_link -> sensor` as f32 for the per-point loop.
 #[derive(Debug, Clone, Copy)]
@@ -72,6 +141,7 @@ pub(crate) struct Preprocessor {
     /// The levelling stage and its estimate (default mode).
     pub(crate) level: Level,
     z_hist: Vec<u32>,
+    clutter: Clutter,
 }
 
 impl Preprocessor {
@@ -82,11 +152,12 @@ impl Preprocessor {
             plane_z_m: 0.0,
             level: Level::new(config),
             z_hist: vec![0; Z_BINS],
+            clutter: Clutter::new(),
         }
     }
 
-    /// Crops `points` (stamped `t_s`, s), levels them under the percentile rule and splits off the
-    /// canopy. Returns the number of finite points in the scan. Never allocates once the buffers have
+    /// Crops `points` (stamped `t_s`, s), clears them of clutter and levels them under the percentile
+    /// rule, and splits off the canopy. Returns the number of finite points in the scan. Never allocates once the buffers have
     /// grown to the largest scan seen.
     pub(crate) fn run(
         &mut self,
@@ -123,6 +194,12 @@ impl Preprocessor {
             self.cropped.push([dx + f.t[0], dy + f.t[1], z]);
         }
         if rule == PlaneRule::Percentile {
+            self.clutter.retain_dense(
+                &mut self.cropped,
+                config.clutter_voxel_m as f32,
+                config.clutter_min_points,
+                config.clutter_min_share as f32,
+            );
             self.level_cropped(t_s, f.t, config);
         }
         if self.cropped.is_empty() {
@@ -227,14 +304,12 @@ mod tests {
         assert!((pre.canopy[0][0] - 2.5).abs() < 1e-4 && (pre.canopy[0][1] - 0.4).abs() < 1e-4);
     }
 
-    /// 100 returns along x from 2 m in `base_link`: 90 on the ground, every tenth a plant top at 0.4 m.
+    /// 100 returns in `base_link`: 90 on the ground along x from 2 m, 1 cm apart (as dense as a ring
+    /// 4 m away), and a plant top of 10 returns at 0.4 m, 5 mm apart.
     fn ground_with_plant_tops(mount: &Mount) -> Vec<Point3> {
-        (0..100)
-            .map(|i| {
-                let z = if i % 10 == 0 { 0.4 } else { 0.0 };
-                sensor_point(mount, [2.0 + 0.01 * i as f64, 0.0, z])
-            })
-            .collect()
+        let ground = (0..90).map(|i| sensor_point(mount, [2.0 + 0.01 * i as f64, 0.0, 0.0]));
+        let top = (0..10).map(|i| sensor_point(mount, [2.52 + 0.005 * i as f64, 0.0, 0.4]));
+        ground.chain(top).collect()
     }
 
     #[test]
@@ -253,14 +328,69 @@ mod tests {
     #[test]
     fn returns_floating_above_the_canopy_are_not_canopy() {
         // 90 ground points, 10 plant tops at 0.4 m and one return at 1.2 m (0.8 m above the 95th
-        // percentile, over the 0.5 m allowed): the plant tops stay, the floating return goes.
+        // percentile, over the 0.5 m allowed): the plant tops stay, the floating return goes. The
+        // clutter test is off: it alone would take the lone return.
         let mount = Mount::default();
-        let cfg = DetectorConfig::default();
+        let cfg = DetectorConfig { clutter_min_points: 0, ..DetectorConfig::default() };
         let mut pts = ground_with_plant_tops(&mount);
         pts.push(sensor_point(&mount, [2.5, 0.2, 1.2]));
         let mut pre = Preprocessor::new(8, &cfg);
         pre.run(0.0, &pts, &mount, &cfg, PlaneRule::Percentile);
         assert_eq!(pre.canopy.len(), 10);
         assert!(pre.canopy.iter().all(|p| p[2] < 0.3), "{:?}", pre.canopy);
+    }
+
+    /// `n` returns alone in their voxels, 0.8-1.4 m above the ground 1.5-3 m ahead (dust, insects).
+    fn dust(mount: &Mount, n: usize) -> impl Iterator<Item = Point3> + '_ {
+        (0..n).map(move |k| {
+            let f = k as f64 / n as f64;
+            sensor_point(mount, [1.5 + 1.5 * f, -1.0 + 2.0 * f, 0.8 + 0.6 * ((7.0 * f) % 1.0)])
+        })
+    }
+
+    #[test]
+    fn lone_returns_in_the_air_do_not_lift_the_plane_off_a_young_crop() {
+        // The fixture plus 12 returns of dust (11 % of the scan, more than the 5 % above the 95th
+        // percentile): with every return kept the percentile lands in the dust and the plane rises over
+        // the plant tops (soak seeds 148, 307); the clutter test drops the dust and the plane stays
+        // halfway to the tops (±2 cm, the histogram's bins).
+        let mount = Mount::default();
+        let pts: Vec<Point3> = ground_with_plant_tops(&mount).into_iter().chain(dust(&mount, 12)).collect();
+        let kept = DetectorConfig { clutter_min_points: 0, ..DetectorConfig::default() };
+        let mut pre = Preprocessor::new(8, &kept);
+        pre.run(0.0, &pts, &mount, &kept, PlaneRule::Percentile);
+        assert!(pre.plane_z_m > 0.4, "the dust no longer lifts the plane: {}", pre.plane_z_m);
+        let cfg = DetectorConfig::default();
+        let mut pre = Preprocessor::new(8, &cfg);
+        pre.run(0.0, &pts, &mount, &cfg, PlaneRule::Percentile);
+        assert_eq!(pre.cropped.len(), 100);
+        assert!((pre.plane_z_m - 0.2).abs() < 0.02, "{}", pre.plane_z_m);
+        assert_eq!(pre.canopy.len(), 10);
+    }
+
+    #[test]
+    fn a_surface_on_a_voxel_face_is_kept_whole() {
+        // 200 ground returns 1.4 cm apart (a ring 4 m away) an eighth 3 mm above z = 0 and the rest 3 mm below, across a face of the
+        // first grid's voxels: none may be dropped as clutter.
+        let cfg = DetectorConfig::default();
+        let mut points: Vec<[f32; 3]> = (0..200)
+            .map(|i| [2.0 + 0.014 * i as f32, 0.3, if i % 8 == 0 { 0.003 } else { -0.003 }])
+            .collect();
+        let mut clutter = Clutter::new();
+        // Every lone return counts: the share test would otherwise keep a thinned face.
+        clutter.retain_dense(&mut points, cfg.clutter_voxel_m as f32, cfg.clutter_min_points, 0.0);
+        assert_eq!(points.len(), 200);
+    }
+
+    #[test]
+    fn a_few_lone_returns_are_kept() {
+        // The fixture plus 2 lone returns (2 % of the scan, under the 3 % share): a young crop's
+        // sparse leaf edges, not dust; every return stays.
+        let mount = Mount::default();
+        let pts: Vec<Point3> = ground_with_plant_tops(&mount).into_iter().chain(dust(&mount, 2)).collect();
+        let cfg = DetectorConfig::default();
+        let mut pre = Preprocessor::new(8, &cfg);
+        pre.run(0.0, &pts, &mount, &cfg, PlaneRule::Percentile);
+        assert_eq!(pre.cropped.len(), 102);
     }
 }
