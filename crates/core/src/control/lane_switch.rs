@@ -247,6 +247,15 @@ pub struct LaneSwitchConfig {
     /// line followed before the stop (the robot stood still: the lane cannot have changed). 0 latches
     /// every stop until [`LaneSwitcher::resume`]. Default 5 (half a second of scans at 10 Hz).
     pub resume_confirmations: u32,
+    /// Least time the robot stands still in such a stop before it follows again, s; 0 resumes as
+    /// soon as the detections agree. A stop is a stand for the gyro bias too: the EKF's bias check
+    /// finds a step at rest in one block (`ekf.bias_check_rest_s`, 1 s) that the moving blocks miss
+    /// while the detector turns with `odom`. Soak seed 664 (a -0.018 rad/s step 1.5 m before scans
+    /// stamped 0.75 s off) stood 0.7 s at its `no_rows` stop, drove on with the bias unfound and
+    /// pivoted 0.37 rad off at the row end (2 plants, `wrong_lane`). Default 1.5, as `bias_dwell_s`
+    /// (a second at rest after the wheels settle); without stamps ([`LaneSwitcher::set_time`]) it
+    /// is not waited for.
+    pub resume_rest_s: f64,
     /// Distance past the canopy end of the row end beyond which crop on the lane's rows means the
     /// "end" was a gap in the rows, m; from one map bin past the canopy end (where the last plants'
     /// centroids may still lie) up to this distance the rows must stay empty. Default 1.0: the
@@ -354,6 +363,7 @@ impl Default for LaneSwitchConfig {
             spacing_tolerance: 0.25,
             max_line_jump_m: 0.25,
             resume_confirmations: 5,
+            resume_rest_s: 1.5,
             gap_margin_m: 1.0,
             gap_rows: 2,
             gap_confirmations: 3,
@@ -404,6 +414,7 @@ impl LaneSwitchConfig {
         check_range("lane_switch.spacing_tolerance", self.spacing_tolerance, 0.01, 10.0)?;
         check_range("lane_switch.max_line_jump_m", self.max_line_jump_m, 0.01, 10.0)?;
         check_range("lane_switch.resume_confirmations", f64::from(self.resume_confirmations), 0.0, 1000.0)?;
+        check_range("lane_switch.resume_rest_s", self.resume_rest_s, 0.0, 30.0)?;
         check_range("lane_switch.max_start_heading_rad", self.max_start_heading_rad, 0.01, 1.0)?;
         check_range("lane_switch.gap_margin_m", self.gap_margin_m, 0.0, 10.0)?;
         check_range(
@@ -682,6 +693,8 @@ pub struct LaneSwitcher {
     disagree: u32,
     /// Consecutive detections of the stopped-at lane, towards an automatic resume.
     resume_agree: u32,
+    /// Stamp since which the robot has stood still in a stop that clears by itself, s.
+    stop_rest_since_s: Option<f64>,
     max_excursion_m: f64,
     /// Turning on the spot at the start of the turn path's first leg.
     pivoting: bool,
@@ -758,6 +771,7 @@ impl LaneSwitcher {
             agree: 0,
             disagree: 0,
             resume_agree: 0,
+            stop_rest_since_s: None,
             max_excursion_m: 0.0,
             pivoting: false,
             end_trim_m: 0.0,
@@ -1120,7 +1134,7 @@ impl LaneSwitcher {
             }
             Mode::Entering => self.enter(odom, detection),
             Mode::Stopped { reason } if reason.clears_by_itself() && self.cfg.resume_confirmations > 0 => {
-                self.recover(odom, detection);
+                self.recover(odom, detection, travelled);
             }
             Mode::Done | Mode::Stopped { .. } => {}
         }
@@ -1298,6 +1312,7 @@ impl LaneSwitcher {
         self.mode = Mode::Following;
         self.blind_m = 0.0;
         self.resume_agree = 0;
+        self.stop_rest_since_s = None;
         self.row_end = None;
         self.exit_line = None;
         self.end_trim_m = 0.0;
@@ -1399,8 +1414,13 @@ impl LaneSwitcher {
     /// While stopped for a cause that clears by itself: counts consecutive detections of the lane that
     /// was followed (a step without a scan keeps the count) and follows again after
     /// `resume_confirmations` of them. The row end is forgotten: the detector reports it again (a
-    /// stop just before the row end resumes on `end_of_row` detections and goes on to clear it).
-    fn recover(&mut self, odom: &Pose2, detection: Option<&Detection>) {
+    /// stop just before the row end resumes on `end_of_row` detections and goes on to clear it). It
+    /// does not follow before it has stood still for `resume_rest_s` (the EKF's rest check).
+    fn recover(&mut self, odom: &Pose2, detection: Option<&Detection>, travelled: f64) {
+        self.stop_rest_since_s = match self.now_s {
+            Some(now) if travelled < REST_STEP_M => Some(self.stop_rest_since_s.unwrap_or(now)),
+            _ => None,
+        };
         let Some(d) = detection else { return };
         let same_lane = matches!(d.status, RowStatus::Tracking | RowStatus::EndOfRow)
             && self.reference.centre_line(d).is_some_and(|line| {
@@ -1412,7 +1432,13 @@ impl LaneSwitcher {
                 })
             });
         self.resume_agree = if same_lane { self.resume_agree.saturating_add(1) } else { 0 };
-        if self.resume_agree >= self.cfg.resume_confirmations && self.reference.update(d, odom) {
+        let rested = self.cfg.resume_rest_s <= 0.0
+            || self.now_s.is_none()
+            || self
+                .stop_rest_since_s
+                .zip(self.now_s)
+                .is_some_and(|(since, now)| now - since >= self.cfg.resume_rest_s);
+        if self.resume_agree >= self.cfg.resume_confirmations && rested && self.reference.update(d, odom) {
             self.enter_following(odom);
         }
     }
@@ -1622,6 +1648,47 @@ mod tests {
         let g = sw.update(&at, Some(&rows(0.6, 0.0)));
         assert_eq!(g.mode, Mode::Following);
         assert!(g.speed_mps > 0.0);
+    }
+
+    /// Stamped scans at 10 Hz of the stopped-at lane, from `t0_s`, the robot at `at` for the `k`th;
+    /// the mode after each.
+    fn resume_modes(sw: &mut LaneSwitcher, t0_s: f64, poses: &[Pose2]) -> Vec<Mode> {
+        poses
+            .iter()
+            .enumerate()
+            .map(|(k, at)| {
+                sw.set_time(t0_s + 0.1 * k as f64);
+                sw.update(at, Some(&rows(0.2 + 0.1 * k as f64, 0.0))).mode
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_stop_that_clears_by_itself_stands_for_the_rest_time_before_following() {
+        // Regression (soak seed 664): the stop is where the EKF finds a gyro bias step at rest.
+        let mut sw = stopped_by_lost_rows(LaneSwitchConfig::default());
+        let rest_s = sw.config().resume_rest_s;
+        let steps = (rest_s / 0.1).round() as usize;
+        let modes = resume_modes(&mut sw, 10.0, &vec![Pose2::new(2.0, 0.0, 0.0); steps + 2]);
+        let stopped = Mode::Stopped { reason: StopReason::RowsLost };
+        // Five agreeing scans after 0.4 s; still standing until `rest_s` has passed (±1 scan).
+        assert!(modes[..steps - 1].iter().all(|m| *m == stopped), "{modes:?}");
+        assert_eq!(modes.last(), Some(&Mode::Following), "{modes:?}");
+    }
+
+    #[test]
+    fn creeping_while_stopped_restarts_the_rest_time() {
+        let mut sw = stopped_by_lost_rows(LaneSwitchConfig::default());
+        let steps = (sw.config().resume_rest_s / 0.1).round() as usize;
+        // 2 cm per scan (0.2 m/s, still braking) for the first half, then still.
+        let poses: Vec<Pose2> =
+            (0..steps + 2).map(|k| Pose2::new(2.0 + 0.02 * k.min(steps / 2) as f64, 0.0, 0.0)).collect();
+        let modes = resume_modes(&mut sw, 10.0, &poses);
+        assert!(modes.iter().all(|m| *m == Mode::Stopped { reason: StopReason::RowsLost }), "{modes:?}");
+        let off = LaneSwitchConfig { resume_rest_s: 0.0, ..LaneSwitchConfig::default() };
+        let mut sw = stopped_by_lost_rows(off);
+        let modes = resume_modes(&mut sw, 10.0, &poses);
+        assert_eq!(modes[4], Mode::Following, "with the rest off the fifth scan resumes: {modes:?}");
     }
 
     #[test]
