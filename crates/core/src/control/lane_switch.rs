@@ -1733,7 +1733,7 @@ mod tests {
     fn a_stop_after_straight_rows_resumes_without_the_rest() {
         // 0.0025 rad/m: `fault-lidar-dropout` before its stops (a healthy gyro).
         let (mut sw, at) = stopped_after_turning_rows(0.0025);
-        let modes = resume_modes(&mut sw, &vec![at; 5]);
+        let modes = resume_modes(&mut sw, &[at; 5]);
         assert_eq!(modes[4], Mode::Following, "{modes:?}");
     }
 
