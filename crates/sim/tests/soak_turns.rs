@@ -13,7 +13,8 @@
 //! the turn's 10 s, the robot came back 0.2-0.4 rad crooked over a row and crushed its last plants. The
 //! EKF's bias check finds the step from the wheels while following when the blocks are clean; when the
 //! rows turned in `odom` (the heading drifts) the robot stands still at the row end and the check
-//! finds it at rest, where the gyro's bias is plain.
+//! finds it at rest, where the gyro's bias is plain; so does a stop that clears by itself after rows
+//! that turned in `odom` (`lane_switch.resume_rest_s`).
 
 use croprow_sim::experiment::soak::{Outcome, run_case, soak_case};
 
@@ -162,5 +163,17 @@ fn a_large_gyro_bias_step_under_odometry_jitter_is_learnt_before_the_turn() {
     // Young corn, +0.026 rad/s from x 2.4 m with stamp jitter and wheel messages out of order (the
     // bias check pairs each wheel sample with the latest gyro sample): 1 plant run over.
     let o = safe_run(137, "young corn 12.6 m x 4 rows 0.73 m apart");
+    assert_eq!((o.end.as_str(), o.lanes_completed), ("done", 2), "{o:?}");
+}
+
+#[test]
+fn a_gyro_bias_step_before_a_stop_is_learnt_at_the_stop() {
+    // Young corn, a -0.018 rad/s gyro step at x 5.5 m, then scans stamped 0.75 s off over x 7-8 m: a
+    // `no_rows` stop at x 7.9 m. It stood 0.7 s and followed again with the step unfound (the
+    // refitted rows turned in `odom` under the suspicion's rate, so no stand at the row end); the
+    // pivots turned 0.37 rad off and the entry ran over 2 plants (`wrong_lane`). The rows had turned
+    // 0.0069 rad/m before the stop, so it now stands `lane_switch.resume_rest_s` (1.5 s) and the
+    // EKF's rest check finds the step (with `resume_rest_s = 0`: 2 plants again).
+    let o = safe_run(664, "young corn 13.0 m x 6 rows 0.78 m apart");
     assert_eq!((o.end.as_str(), o.lanes_completed), ("done", 2), "{o:?}");
 }

@@ -247,6 +247,25 @@ pub struct LaneSwitchConfig {
     /// line followed before the stop (the robot stood still: the lane cannot have changed). 0 latches
     /// every stop until [`LaneSwitcher::resume`]. Default 5 (half a second of scans at 10 Hz).
     pub resume_confirmations: u32,
+    /// Least time the robot stands still in such a stop before it follows again when the rows it
+    /// followed before the stop turned in `odom` (see `resume_rest_rad_per_m`), s; 0 resumes as
+    /// soon as the detections agree. Such a stop is a stand for the gyro bias: the EKF's bias check finds a
+    /// step at rest in one block (`ekf.bias_check_rest_s`, 1 s) that the moving blocks miss. Soak
+    /// seed 664 (a -0.018 rad/s step 1.5 m before scans stamped 0.75 s off) stood 0.7 s at its
+    /// `no_rows` stop, drove on with the bias unfound and pivoted 0.37 rad off at the row end (2
+    /// plants, `wrong_lane`); with the stand it is done, 0 plants. On straight rows the stop is not
+    /// lengthened: standing 1.5 s longer at each LiDAR dropout of `fault-lidar-dropout` moved its
+    /// third dropout's re-entry onto a lattice half a spacing off near the row end (1 plant).
+    /// Default 1.5, as `bias_dwell_s` (a second at rest after the wheels settle); without stamps
+    /// ([`LaneSwitcher::set_time`]) it is not waited for.
+    pub resume_rest_s: f64,
+    /// Rate at which the followed rows' direction in `odom` (the followed path's, over the latest 2
+    /// m before the stop, at least 1 m) must have turned for a stop to last `resume_rest_s`, rad/m.
+    /// Half `bias_suspect_rad_per_m`: a false suspicion at a stop costs only the stand, not a stop
+    /// in the rows. Measured: soak seed 664 0.0069 rad/m before its stop (the path lags the map,
+    /// which lags a 0.036 rad/m heading error), `fault-lidar-dropout` 0.0025 at both its stops (the
+    /// lane where standing longer cost a plant, see above). Default 0.005.
+    pub resume_rest_rad_per_m: f64,
     /// Distance past the canopy end of the row end beyond which crop on the lane's rows means the
     /// "end" was a gap in the rows, m; from one map bin past the canopy end (where the last plants'
     /// centroids may still lie) up to this distance the rows must stay empty. Default 1.0: the
@@ -354,6 +373,8 @@ impl Default for LaneSwitchConfig {
             spacing_tolerance: 0.25,
             max_line_jump_m: 0.25,
             resume_confirmations: 5,
+            resume_rest_s: 1.5,
+            resume_rest_rad_per_m: 0.005,
             gap_margin_m: 1.0,
             gap_rows: 2,
             gap_confirmations: 3,
@@ -404,6 +425,8 @@ impl LaneSwitchConfig {
         check_range("lane_switch.spacing_tolerance", self.spacing_tolerance, 0.01, 10.0)?;
         check_range("lane_switch.max_line_jump_m", self.max_line_jump_m, 0.01, 10.0)?;
         check_range("lane_switch.resume_confirmations", f64::from(self.resume_confirmations), 0.0, 1000.0)?;
+        check_range("lane_switch.resume_rest_s", self.resume_rest_s, 0.0, 30.0)?;
+        check_range("lane_switch.resume_rest_rad_per_m", self.resume_rest_rad_per_m, 1e-4, 1.0)?;
         check_range("lane_switch.max_start_heading_rad", self.max_start_heading_rad, 0.01, 1.0)?;
         check_range("lane_switch.gap_margin_m", self.gap_margin_m, 0.0, 10.0)?;
         check_range(
@@ -682,6 +705,8 @@ pub struct LaneSwitcher {
     disagree: u32,
     /// Consecutive detections of the stopped-at lane, towards an automatic resume.
     resume_agree: u32,
+    /// Stamp since which the robot has stood still in a stop that clears by itself, s.
+    stop_rest_since_s: Option<f64>,
     max_excursion_m: f64,
     /// Turning on the spot at the start of the turn path's first leg.
     pivoting: bool,
@@ -731,6 +756,9 @@ pub struct LaneSwitcher {
 /// Distance over which the followed rows' turn in `odom` is measured for the bias suspicion, m: a
 /// fit's heading wobbles by about 0.01 rad, so over 2 m the rate is good to 0.005-0.007 rad/m.
 const BIAS_SUSPECT_WINDOW_M: f64 = 2.0;
+/// Shortest stretch of rows, m, over which their turn in `odom` before a stop counts for the rest
+/// at the stop (`resume_rest_s`): half the suspicion's window.
+const SHORT_SUSPECT_WINDOW_M: f64 = 1.0;
 /// Distance a bias suspicion must hold without a break to count at the row end after it lapsed, m.
 const BIAS_HOLD_M: f64 = 2.5;
 /// Spacing of the row directions kept for it, m, and how many are kept (the window and one more).
@@ -758,6 +786,7 @@ impl LaneSwitcher {
             agree: 0,
             disagree: 0,
             resume_agree: 0,
+            stop_rest_since_s: None,
             max_excursion_m: 0.0,
             pivoting: false,
             end_trim_m: 0.0,
@@ -1120,7 +1149,7 @@ impl LaneSwitcher {
             }
             Mode::Entering => self.enter(odom, detection),
             Mode::Stopped { reason } if reason.clears_by_itself() && self.cfg.resume_confirmations > 0 => {
-                self.recover(odom, detection);
+                self.recover(odom, detection, travelled);
             }
             Mode::Done | Mode::Stopped { .. } => {}
         }
@@ -1298,6 +1327,7 @@ impl LaneSwitcher {
         self.mode = Mode::Following;
         self.blind_m = 0.0;
         self.resume_agree = 0;
+        self.stop_rest_since_s = None;
         self.row_end = None;
         self.exit_line = None;
         self.end_trim_m = 0.0;
@@ -1399,8 +1429,13 @@ impl LaneSwitcher {
     /// While stopped for a cause that clears by itself: counts consecutive detections of the lane that
     /// was followed (a step without a scan keeps the count) and follows again after
     /// `resume_confirmations` of them. The row end is forgotten: the detector reports it again (a
-    /// stop just before the row end resumes on `end_of_row` detections and goes on to clear it).
-    fn recover(&mut self, odom: &Pose2, detection: Option<&Detection>) {
+    /// stop just before the row end resumes on `end_of_row` detections and goes on to clear it). It
+    /// does not follow before it has stood still for `resume_rest_s` (the EKF's rest check).
+    fn recover(&mut self, odom: &Pose2, detection: Option<&Detection>, travelled: f64) {
+        self.stop_rest_since_s = match self.now_s {
+            Some(now) if travelled < REST_STEP_M => Some(self.stop_rest_since_s.unwrap_or(now)),
+            _ => None,
+        };
         let Some(d) = detection else { return };
         let same_lane = matches!(d.status, RowStatus::Tracking | RowStatus::EndOfRow)
             && self.reference.centre_line(d).is_some_and(|line| {
@@ -1412,9 +1447,29 @@ impl LaneSwitcher {
                 })
             });
         self.resume_agree = if same_lane { self.resume_agree.saturating_add(1) } else { 0 };
-        if self.resume_agree >= self.cfg.resume_confirmations && self.reference.update(d, odom) {
+        let rested = self.cfg.resume_rest_s <= 0.0
+            || self.now_s.is_none()
+            || !self.rows_turned_before_stop()
+            || self
+                .stop_rest_since_s
+                .zip(self.now_s)
+                .is_some_and(|(since, now)| now - since >= self.cfg.resume_rest_s);
+        if self.resume_agree >= self.cfg.resume_confirmations && rested && self.reference.update(d, odom) {
             self.enter_following(odom);
         }
+    }
+
+    /// True when the rows followed before a stop turned in `odom` faster than
+    /// `resume_rest_rad_per_m` over the latest 1 to 2 m (the suspicion's window, shortened when the
+    /// lane was entered less than 2 m before), or a bias error was suspected in the lane.
+    fn rows_turned_before_stop(&self) -> bool {
+        let headings = &self.row_headings[..self.row_headings_len];
+        let turned = headings.first().zip(headings.last()).is_some_and(|((new_m, new), (old_m, old))| {
+            let span_m = new_m - old_m;
+            span_m >= SHORT_SUSPECT_WINDOW_M
+                && (wrap_angle(new - old) / span_m).abs() > self.cfg.resume_rest_rad_per_m
+        });
+        self.bias_suspect || self.bias_suspected_in_lane || turned
     }
 
     /// The distance along the rows from `base_link` to the row end that a detection implies, m: the
@@ -1622,6 +1677,76 @@ mod tests {
         let g = sw.update(&at, Some(&rows(0.6, 0.0)));
         assert_eq!(g.mode, Mode::Following);
         assert!(g.speed_mps > 0.0);
+    }
+
+    /// A switcher that followed rows turning in `odom` at `rate` rad/m for 1.5 m (shorter than the
+    /// suspicion's 2 m window, as soak seed 664 between its gyro step and its stop), then stopped by
+    /// lost rows; the pose it stopped at.
+    fn stopped_after_turning_rows(rate: f64) -> (LaneSwitcher, Pose2) {
+        let mut sw = LaneSwitcher::new(LaneSwitchConfig::default(), ReferenceConfig::default()).unwrap();
+        let pose = |x: f64| Pose2::new(x, 0.0, -rate * (x - 1.0));
+        for i in 0..=15 {
+            let x = 1.0 + 0.1 * f64::from(i);
+            sw.update(&pose(x), Some(&rows(0.2 * f64::from(i), 0.0)));
+            assert_eq!(sw.mode(), Mode::Following, "at x {x}");
+        }
+        let at = pose(2.6);
+        let g = sw.update(&at, Some(&Detection::empty(3.2, RowStatus::Lost)));
+        assert_eq!(g.mode, Mode::Stopped { reason: StopReason::RowsLost });
+        assert!(!sw.bias_suspected(), "too short for the 2 m window");
+        (sw, at)
+    }
+
+    /// Stamped scans at 10 Hz of the stopped-at lane, from t = 10 s, the robot at `poses[k]` for the
+    /// `k`th; the mode after each.
+    fn resume_modes(sw: &mut LaneSwitcher, poses: &[Pose2]) -> Vec<Mode> {
+        poses
+            .iter()
+            .enumerate()
+            .map(|(k, at)| {
+                let t = 10.0 + 0.1 * k as f64;
+                sw.set_time(t);
+                sw.update(at, Some(&rows(t, 0.0))).mode
+            })
+            .collect()
+    }
+
+    /// Scans (10 Hz) in the stand at rest `resume_rest_s` lasts.
+    fn rest_scans(sw: &LaneSwitcher) -> usize {
+        (sw.config().resume_rest_s / 0.1).round() as usize
+    }
+
+    #[test]
+    fn a_stop_after_rows_turned_in_odom_stands_for_the_rest_time_before_following() {
+        // Regression (soak seed 664): the stop is where the EKF finds a gyro bias step at rest.
+        // 0.007 rad/m: the followed path of 664 before its stop (a 0.018 rad/s step).
+        let (mut sw, at) = stopped_after_turning_rows(0.007);
+        let steps = rest_scans(&sw);
+        let modes = resume_modes(&mut sw, &vec![at; steps + 2]);
+        // Five agreeing scans after 0.4 s; still standing until `resume_rest_s` has passed (±1 scan).
+        let stopped = Mode::Stopped { reason: StopReason::RowsLost };
+        assert!(modes[..steps - 1].iter().all(|m| *m == stopped), "{modes:?}");
+        assert_eq!(modes.last(), Some(&Mode::Following), "{modes:?}");
+    }
+
+    #[test]
+    fn a_stop_after_straight_rows_resumes_without_the_rest() {
+        // 0.0025 rad/m: `fault-lidar-dropout` before its stops (a healthy gyro).
+        let (mut sw, at) = stopped_after_turning_rows(0.0025);
+        let modes = resume_modes(&mut sw, &[at; 5]);
+        assert_eq!(modes[4], Mode::Following, "{modes:?}");
+    }
+
+    #[test]
+    fn creeping_while_stopped_restarts_the_rest_time() {
+        let (mut sw, at) = stopped_after_turning_rows(0.03);
+        let steps = rest_scans(&sw);
+        // 2 cm per scan (0.2 m/s, still braking) for the first half, then still.
+        let poses: Vec<Pose2> = (0..steps + 2)
+            .map(|k| at.compose(&Pose2::new(0.02 * k.min(steps / 2) as f64, 0.0, 0.0)))
+            .collect();
+        let modes = resume_modes(&mut sw, &poses);
+        assert!(modes.iter().all(|m| *m == Mode::Stopped { reason: StopReason::RowsLost }), "{modes:?}");
     }
 
     #[test]
