@@ -23,7 +23,10 @@
 
 use crate::terrain::Relief;
 
+mod bvh;
 mod packet;
+
+use bvh::Bvh;
 
 pub(crate) use packet::Isa;
 pub(crate) use packet::LANES as PACKET_LANES;
@@ -282,11 +285,10 @@ struct CellInfo {
 /// The scene: primitives, the grid over them, and the terrain.
 #[derive(Debug, Clone)]
 pub(crate) struct Scene {
+    /// The primitives, in the order of the leaves of `bvh`.
     prims: Vec<Prim>,
-    /// Per primitive, its horizontal bounds, one array per axis: `[x_min, x_max]`, then `[y_min,
-    /// y_max]` (field frame, m). Beam packets skip a primitive that lies beside their wedge without
-    /// loading it, reading only the axis across their walk (8 bytes a primitive).
-    footprints: [Vec<[f32; 2]>; 2],
+    /// The hierarchy the beam packets traverse.
+    bvh: Bvh,
     relief: Relief,
     /// Upper bound of the relief's slope |∇h| (numerical, with margin), for sphere tracing.
     relief_slope: f64,
@@ -331,6 +333,7 @@ impl Scene {
         y_max: f64,
         cell_m: f64,
     ) -> Self {
+        let (bvh, prims) = Bvh::build(prims);
         let nx = (((x_max - x_min) / cell_m).ceil() as i32).max(1);
         let ny = (((y_max - y_min) / cell_m).ceil() as i32).max(1);
         let n_cells = (nx as usize) * (ny as usize);
@@ -421,10 +424,9 @@ impl Scene {
                 }
             }
         }
-        let footprints = [0, 1].map(|k| prims.iter().map(|p| p.bounds()).map(|b| [b[k], b[k + 3]]).collect());
         Self {
             prims,
-            footprints,
+            bvh,
             relief,
             relief_slope,
             x0,
