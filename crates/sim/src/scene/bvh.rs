@@ -172,7 +172,8 @@ fn best_split(span: &[Item], bounds: &Aabb, centres: &Aabb) -> Option<(usize, us
     let mut best: Option<(f32, usize, usize)> = None;
     for axis in 0..3 {
         let extent = centres.hi[axis] - centres.lo[axis];
-        if !(extent > 0.0) {
+        // Coincident centroids (or NaN bounds): nothing to bin along this axis.
+        if extent.is_nan() || extent <= 0.0 {
             continue;
         }
         let scale = BINS as f32 / extent;
@@ -201,7 +202,8 @@ fn best_split(span: &[Item], bounds: &Aabb, centres: &Aabb) -> Option<(usize, us
             if n == 0 || rn == 0 {
                 continue;
             }
-            let cost = TRAVERSAL_COST + (acc.half_area() * n as f32 + ra * rn as f32) / parent_area.max(1e-12);
+            let cost =
+                TRAVERSAL_COST + (acc.half_area() * n as f32 + ra * rn as f32) / parent_area.max(1e-12);
             if best.is_none_or(|(c, _, _)| cost < c) {
                 best = Some((cost, axis, b));
             }
@@ -242,7 +244,8 @@ mod tests {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
         let prims: Vec<Prim> = (0..2000)
             .map(|_| {
-                let c = [rng.random_range(0.0..20.0), rng.random_range(-3.0..3.0), rng.random_range(0.0..1.0)];
+                let c =
+                    [rng.random_range(0.0..20.0), rng.random_range(-3.0..3.0), rng.random_range(0.0..1.0)];
                 Prim::spheroid(c, rng.random_range(0.01..0.2), 0.05, Class::Weed)
             })
             .collect();

@@ -66,6 +66,8 @@ impl Lanes {
     /// (both ends included: the box bounds the hits with a margin). `inv`: the reciprocal directions
     /// per axis.
     #[inline(always)]
+    // Indexed loops over plain arrays are the shape the compiler vectorises.
+    #[allow(clippy::needless_range_loop)]
     fn reach(&self, o: [f32; 3], inv: &[[f32; LANES]; 3], lo: [f32; 3], hi: [f32; 3]) -> bool {
         let a = [lo[0] - o[0], lo[1] - o[1], lo[2] - o[2]];
         let b = [hi[0] - o[0], hi[1] - o[1], hi[2] - o[2]];
@@ -234,13 +236,7 @@ impl Scene {
     /// The packet code, inlined (with everything it calls but the single-ray caster) into each
     /// variant's wrapper so that it compiles for the wrapper's instruction set.
     #[inline(always)]
-    fn cast_packet_with(
-        &self,
-        o: [f32; 3],
-        dirs: &[[f32; 3]],
-        t_max: f32,
-        out: &mut [Option<(f32, Class)>],
-    ) {
+    fn cast_packet_with(&self, o: [f32; 3], dirs: &[[f32; 3]], t_max: f32, out: &mut [Option<(f32, Class)>]) {
         // Most packets behind the sensor rise: settle them before setting up any lanes.
         let mut starts = [const { None }; LANES];
         for ((&d, slot), start) in dirs.iter().zip(out.iter_mut()).zip(&mut starts) {
@@ -276,6 +272,7 @@ impl Scene {
     /// Traverses the hierarchy with every searching lane: a node is entered when some lane's ray
     /// meets its box between the lane's `lo` and its best hit so far, near child first.
     #[inline(always)]
+    #[allow(clippy::needless_range_loop)]
     fn trace(&self, o: [f32; 3], lanes: &mut Lanes) {
         let (nodes, prims) = (self.bvh.nodes.as_slice(), self.prims.as_slice());
         // Reciprocals for the slab tests; an axis the ray does not move along gets a huge one, so that
@@ -300,7 +297,8 @@ impl Scene {
             }
             if node.count > 0 {
                 let first = node.first as usize;
-                for (i, p) in prims.get(first..first + node.count as usize).unwrap_or(&[]).iter().enumerate() {
+                for (i, p) in prims.get(first..first + node.count as usize).unwrap_or(&[]).iter().enumerate()
+                {
                     let prim = (first + i) as u32;
                     match p.shape {
                         Shape::Patch { o: po, n, ua, wa, ellipse: true } => {
@@ -314,7 +312,8 @@ impl Scene {
                 }
             } else if let Some(slots) = stack.get_mut(top..top + 2) {
                 let near_second = back.get(node.axis as usize) == Some(&true);
-                let (near, far) = if near_second { (node.first + 1, node.first) } else { (node.first, node.first + 1) };
+                let (near, far) =
+                    if near_second { (node.first + 1, node.first) } else { (node.first, node.first + 1) };
                 slots.copy_from_slice(&[far, near]);
                 top += 2;
             }
@@ -350,7 +349,6 @@ impl Scene {
             Start::Search { t_lo, t_hi, ground: false }
         }
     }
-
 }
 
 #[cfg(test)]
