@@ -13,10 +13,12 @@
 //!   the first one ends the ray.
 //!
 //! [`Scene::cast`] casts one ray that way. The LiDAR casts beam packets instead (`packet`: a laser's
-//! rays at 8 consecutive azimuths walk the grid together and test each primitive on all 8 at once, in
-//! one AVX2 register where the CPU has it), which return exactly what `cast` returns ray by ray; `cast` stays the path of the rays packets do
-//! not suit and the reference the packet tests compare against.
-//!
+//! rays at 8 consecutive azimuths traverse a bounding volume hierarchy over the primitives together,
+//! `bvh`, each box and each primitive tested on all 8 at once, in one AVX2 register where the CPU has
+//! it), which return exactly what `cast` returns ray by ray; `cast` stays the path of the rays packets
+//! do not suit (rising or near-vertical rays, relief) and the reference the packet tests compare
+//! against. The scene's primitives are stored in the order of the hierarchy's leaves.
+
 //! Primitives are cheap to intersect: flat patches (rectangles and ellipses) for leaves, vertical
 //! cylinders for stalks, axis-aligned spheroids for weed clumps. All geometry is `f32` in the field frame
 //! (metres). A test checks the grid against a brute-force caster (every primitive, no grid).

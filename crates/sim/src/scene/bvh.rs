@@ -24,6 +24,10 @@ const MARGIN_M: f32 = 1e-3;
 /// (2^22 primitives) within 20 more levels.
 pub(super) const MAX_DEPTH: usize = 64;
 const BALANCED_BELOW: usize = 40;
+/// Spans of more primitives than this are halved in space (at the middle of their centroids' widest
+/// extent) instead of by the surface area heuristic: one pass instead of four over a span, where a
+/// field's primitives spread evenly, so that both pick nearly the same plane.
+const SAH_MAX: usize = 8192;
 /// Cost of visiting a node, relative to testing one primitive (surface area heuristic).
 const TRAVERSAL_COST: f32 = 1.0;
 
@@ -67,10 +71,13 @@ struct Aabb {
 impl Aabb {
     const EMPTY: Self = Self { lo: [f32::INFINITY; 3], hi: [f32::NEG_INFINITY; 3] };
 
+    /// Plain comparisons, not `f32::min`: they compile to one instruction each (the build spends
+    /// most of its time here) and a NaN bound is simply not taken.
+    #[inline]
     fn grow(&mut self, lo: [f32; 3], hi: [f32; 3]) {
         for k in 0..3 {
-            self.lo[k] = self.lo[k].min(lo[k]);
-            self.hi[k] = self.hi[k].max(hi[k]);
+            self.lo[k] = if lo[k] < self.lo[k] { lo[k] } else { self.lo[k] };
+            self.hi[k] = if hi[k] > self.hi[k] { hi[k] } else { self.hi[k] };
         }
     }
 
@@ -111,6 +118,8 @@ impl Bvh {
             });
             let split = if span.len() <= LEAF_MIN || depth >= BALANCED_BELOW {
                 None
+            } else if span.len() > SAH_MAX {
+                middle(&centres)
             } else {
                 best_split(span, &bounds, &centres)
             };
@@ -162,6 +171,13 @@ fn widest(centres: &Aabb) -> usize {
     } else {
         2
     }
+}
+
+/// The split at the middle of the centroids' widest extent, as an axis and a bin for `partition`;
+/// `None` when every centroid coincides.
+fn middle(centres: &Aabb) -> Option<(usize, usize)> {
+    let axis = widest(centres);
+    (centres.hi[axis] - centres.lo[axis] > 0.0).then_some((axis, BINS / 2))
 }
 
 /// The binned surface-area split of `span` (bounds `bounds`, centroid bounds `centres`): the axis and
@@ -216,7 +232,8 @@ fn best_split(span: &[Item], bounds: &Aabb, centres: &Aabb) -> Option<(usize, us
 }
 
 /// Moves the items whose centroid falls in a bin before `bin` along `axis` to the front; returns how
-/// many there are (both halves are non-empty: `best_split` only picks such bins).
+/// many there are (both halves are non-empty: `best_split` only picks such bins, and the middle bin
+/// of a positive extent has the centroids of its two ends on either side).
 fn partition(span: &mut [Item], axis: usize, bin: usize, centres: &Aabb) -> usize {
     let scale = BINS as f32 / (centres.hi[axis] - centres.lo[axis]);
     let mut front = 0;

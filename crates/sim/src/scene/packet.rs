@@ -18,6 +18,11 @@
 //!
 //! Rays the packet does not suit go to [`Scene::cast`]: rays that rise or are near vertical, and relief
 //! (the packet takes the flat ground analytically).
+//!
+//! Cost (AVX2): young corn 11.3M instructions a revolution, grown corn 17.0M (the grid walk this
+//! replaced: 13.9M and 16.1M), at more instructions a cycle than the walk: a third less CPU time on
+//! open canopies, the same on closed ones, where the boxes of the crest's leaves overlap every
+//! downward ray. The measurements and what was tried are written down in `benches/lidar.rs`.
 
 use super::{Class, Prim, Scene, Shape};
 
