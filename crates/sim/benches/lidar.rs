@@ -201,6 +201,8 @@
 //! hierarchy adds to the field's generation (CPU time, same load): grown corn 0.26 -> 0.65 s, young
 //! corn 0.09 -> 0.29 s, grown soybean 0.50 -> 1.41 s; 3.8G instructions for grown corn, 80 % of them
 //! the heuristic's binning.
+//! The build as committed, 3 runs alternating (load average 9-12): young corn 2.10 -> 1.26 ms, grown
+//! corn 2.40 -> 2.40 ms CPU per revolution.
 //!
 //! Why the closed canopy gains nothing: a grown-corn revolution visits 312k nodes (~35 instructions
 //! each, ~11M) and runs 152k 8-lane patch tests (the grid walk: 26k). A leaf's box bounds its whole
