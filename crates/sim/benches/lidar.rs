@@ -178,6 +178,47 @@
 //! but cost 19 % more instructions (28 instead of 12 a reference): CPU time unchanged. The caster
 //! runs at about 2 instructions a cycle: the 1 ms target needs about 4M instructions a revolution,
 //! i.e. a different algorithm (fewer references scanned per ray), not a layout or a branch shape.
+//!
+//! Bounding volume hierarchy (branch `simperf7`): the packets traverse a binary BVH over the
+//! primitives instead of walking the grid (`scene/bvh.rs`: binned surface area heuristic, 12 bins on
+//! each axis, spans over 8192 primitives halved at their centroids' middle, leaves of 2-4 primitives,
+//! boxes widened by 1 mm, the scene's primitives reordered to the leaves; `scene/packet.rs`: a stack
+//! of nodes, each box slab-tested against the 8 lanes at once, near child first by the sign of the
+//! packet's direction along the split axis, a node skipped when no searching lane meets its box before
+//! its nearest hit; the exact 8-lane primitive tests of before). The grid stays for single rays
+//! (`Scene::cast`: rising and near-vertical rays, relief). Scans bit for bit the same: scan hashes of
+//! all five scenarios (30 revolutions), the packet-vs-single-ray and variant tests. Instructions per
+//! revolution (callgrind as above, 3 revolutions) grid -> BVH: young corn 13.91M -> 11.52M (-17 %),
+//! grown corn 16.09M -> 17.24M (+7 %), young soybean 15.51M -> 12.77M
+//! (-18 %), grown soybean 18.41M -> 19.75M (+7 %), curved corn 14.44M -> 11.62M (-20 %); the build as committed
+//! (the middle splits for large spans came last) gives grown corn 17.01M, young corn 11.27M. CPU time per
+//! revolution (`examples/raycast_cost.rs`, 30 revolutions, 5 runs alternating the binaries, median;
+//! load average 13-16 on the 2 cores): young corn 2.06 -> 1.33 ms, grown corn 2.53 -> 2.47 ms, young
+//! soybean 2.41 -> 1.60 ms, grown soybean 3.45 -> 3.33 ms, curved corn 2.42 -> 1.38 ms: the traversal
+//! runs more instructions a cycle than the grid walk (its branches follow the tree, not a coin flip
+//! per cell reference). `croprow bench --json` `sim_realtime_factor` (grown corn, wall time at load
+//! average 13-15, 4 runs alternating, median) 14.1 -> 14.3: unchanged within the noise. Building the
+//! hierarchy adds to the field's generation (CPU time, same load): grown corn 0.26 -> 0.65 s, young
+//! corn 0.09 -> 0.29 s, grown soybean 0.50 -> 1.41 s; 3.8G instructions for grown corn, 80 % of them
+//! the heuristic's binning.
+//! The build as committed, 3 runs alternating (load average 9-12): young corn 2.10 -> 1.26 ms, grown
+//! corn 2.40 -> 2.40 ms CPU per revolution.
+//!
+//! Why the closed canopy gains nothing: a grown-corn revolution visits 312k nodes (~35 instructions
+//! each, ~11M) and runs 152k 8-lane patch tests (the grid walk: 26k). A leaf's box bounds its whole
+//! primitive, and the boxes of a canopy's leaf segments (15-23 cm, tilted) overlap along the crest
+//! that every downward ray skims before it hits; the grid lists a primitive per 10 cm cell with the
+//! height range of its part over that cell, which a BVH of whole primitives cannot match. Tried on
+//! the branch and dropped (grown corn, instructions per 3 revolutions, against 51.7M):
+//! - binning on the widest axis only (half the build time): 58.3M; leaves of 1-2 primitives with it
+//!   58.5M;
+//! - a node test returning the lanes' nearest entry (a packed minimum) instead of a hit mask: 56.4M;
+//!   with it, both children tested at the parent and the nearer visited first: 61.5M (widest-axis
+//!   build);
+//! - long patches cut into pieces of at most 6 cm, each piece's box a leaf entry (a table of the
+//!   primitives a packet tested, as the grid walk had): 64.8M, and a 2 s build;
+//! - 32 bins (with an index array for the leaves): 55.7M; the heuristic weighting boxes' top faces
+//!   twice (the rays come from above): 51.4M (-0.7 %).
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use croprow_core::Pose2;

@@ -13,17 +13,22 @@
 //!   the first one ends the ray.
 //!
 //! [`Scene::cast`] casts one ray that way. The LiDAR casts beam packets instead (`packet`: a laser's
-//! rays at 8 consecutive azimuths walk the grid together and test each primitive on all 8 at once, in
-//! one AVX2 register where the CPU has it), which return exactly what `cast` returns ray by ray; `cast` stays the path of the rays packets do
-//! not suit and the reference the packet tests compare against.
-//!
+//! rays at 8 consecutive azimuths traverse a bounding volume hierarchy over the primitives together,
+//! `bvh`, each box and each primitive tested on all 8 at once, in one AVX2 register where the CPU has
+//! it), which return exactly what `cast` returns ray by ray; `cast` stays the path of the rays packets
+//! do not suit (rising or near-vertical rays, relief) and the reference the packet tests compare
+//! against. The scene's primitives are stored in the order of the hierarchy's leaves.
+
 //! Primitives are cheap to intersect: flat patches (rectangles and ellipses) for leaves, vertical
 //! cylinders for stalks, axis-aligned spheroids for weed clumps. All geometry is `f32` in the field frame
 //! (metres). A test checks the grid against a brute-force caster (every primitive, no grid).
 
 use crate::terrain::Relief;
 
+mod bvh;
 mod packet;
+
+use bvh::Bvh;
 
 pub(crate) use packet::Isa;
 pub(crate) use packet::LANES as PACKET_LANES;
@@ -282,11 +287,10 @@ struct CellInfo {
 /// The scene: primitives, the grid over them, and the terrain.
 #[derive(Debug, Clone)]
 pub(crate) struct Scene {
+    /// The primitives, in the order of the leaves of `bvh`.
     prims: Vec<Prim>,
-    /// Per primitive, its horizontal bounds, one array per axis: `[x_min, x_max]`, then `[y_min,
-    /// y_max]` (field frame, m). Beam packets skip a primitive that lies beside their wedge without
-    /// loading it, reading only the axis across their walk (8 bytes a primitive).
-    footprints: [Vec<[f32; 2]>; 2],
+    /// The hierarchy the beam packets traverse.
+    bvh: Bvh,
     relief: Relief,
     /// Upper bound of the relief's slope |∇h| (numerical, with margin), for sphere tracing.
     relief_slope: f64,
@@ -331,6 +335,7 @@ impl Scene {
         y_max: f64,
         cell_m: f64,
     ) -> Self {
+        let (bvh, prims) = Bvh::build(prims);
         let nx = (((x_max - x_min) / cell_m).ceil() as i32).max(1);
         let ny = (((y_max - y_min) / cell_m).ceil() as i32).max(1);
         let n_cells = (nx as usize) * (ny as usize);
@@ -421,10 +426,9 @@ impl Scene {
                 }
             }
         }
-        let footprints = [0, 1].map(|k| prims.iter().map(|p| p.bounds()).map(|b| [b[k], b[k + 3]]).collect());
         Self {
             prims,
-            footprints,
+            bvh,
             relief,
             relief_slope,
             x0,
