@@ -8,20 +8,30 @@
 //! opt-in (off by default, see its doc): the guarded run sets it to 0.1; and the clutter test of the
 //! preprocessing (`DetectorConfig::clutter_min_points`, on by default).
 
-use croprow_sim::experiment::soak::{Outcome, run_case, soak_case};
+use croprow_sim::experiment::soak::{Case, Outcome, run_case, soak_case};
 
-/// Runs the soak case of `seed` (whose summary starts with `summary`) once with every bin kept
-/// (`core_fraction` = 0, the default: it must touch plants, as it did) and once with `core_fraction` = 0.1.
-fn run_seed(seed: u64, summary: &str) -> Outcome {
+/// Runs the soak case of `seed` (whose summary starts with `summary`) once with `unguard` applied (it
+/// must touch plants, as it did) and once with `guard` applied; returns the guarded outcome.
+fn run_guarded(seed: u64, summary: &str, unguard: impl Fn(&mut Case), guard: impl Fn(&mut Case)) -> Outcome {
     let case = soak_case(seed);
     assert!(case.scenario.summary.starts_with(summary), "{}", case.scenario.summary);
     let mut unguarded = case.clone();
-    unguarded.navigator.detector.core_fraction = 0.0;
+    unguard(&mut unguarded);
     let before = run_case(&unguarded).expect("runs");
     assert!(before.crop_contacts > 0, "the case no longer provokes the failure: {before:?}");
     let mut guarded = case;
-    guarded.navigator.detector.core_fraction = 0.1;
+    guard(&mut guarded);
     run_case(&guarded).expect("runs")
+}
+
+/// [`run_guarded`] with every bin kept (`core_fraction` = 0, the default) and with `core_fraction` = 0.1.
+fn run_seed(seed: u64, summary: &str) -> Outcome {
+    run_guarded(
+        seed,
+        summary,
+        |c| c.navigator.detector.core_fraction = 0.0,
+        |c| c.navigator.detector.core_fraction = 0.1,
+    )
 }
 
 #[test]
@@ -56,16 +66,12 @@ fn dust_over_a_young_crop_does_not_lift_the_canopy_plane() {
     // returns, so the 95th height percentile jumped from the crop's tops (0.3 m) into the dust
     // (0.9 m), the canopy plane rose over the crop and the fit followed the dust (8 contacts, second
     // lane). The clutter test drops returns alone in their voxel before the plane is placed.
-    let case = soak_case(148);
-    assert!(
-        case.scenario.summary.starts_with("young corn 13.7 m x 10 rows 0.73 m"),
-        "{}",
-        case.scenario.summary
+    // The guarded run is the defaults (`clutter_min_points` 3).
+    let o = run_guarded(
+        148,
+        "young corn 13.7 m x 10 rows 0.73 m",
+        |c| c.navigator.detector.clutter_min_points = 0,
+        |_| {},
     );
-    let mut unguarded = case.clone();
-    unguarded.navigator.detector.clutter_min_points = 0;
-    let before = run_case(&unguarded).expect("runs");
-    assert!(before.crop_contacts > 0, "the case no longer provokes the failure: {before:?}");
-    let o = run_case(&case).expect("runs");
     assert_eq!((o.crop_contacts, o.unsafe_commands), (0, 0), "{o:?}");
 }
