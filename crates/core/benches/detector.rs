@@ -1,6 +1,7 @@
 //! Detector benchmark: one full-resolution VLP-16 scan (16 rings × 1800 azimuths = 28,800 points, an
 //! organised cloud with NaN where a ray has no return) over a grown-crop canopy, from the test fixture. Whole `detect` step for
-//! both modes, then each stage alone.
+//! both modes, then each stage alone; the default mode's preprocessing again with the motion deskew on
+//! (`deskew/Preprocess`: its cost is the difference to `default/Preprocess`).
 //!
 //! `cargo bench -p croprow-core --bench detector -- --warm-up-time 1 --measurement-time 3`
 
@@ -8,7 +9,7 @@ use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use croprow_core::perception::Stage;
-use croprow_core::{DetectorConfig, Mount, Point3, Pose2, RowDetector, Scan};
+use croprow_core::{DetectorConfig, Mount, Point3, Pose2, RowDetector, Scan, Twist2};
 
 #[path = "../tests/support/mod.rs"]
 mod support;
@@ -31,7 +32,7 @@ fn scans() -> Vec<(Pose2, Vec<Point3>)> {
 fn warm(config: DetectorConfig, scans: &[(Pose2, Vec<Point3>)]) -> RowDetector {
     let mut det = RowDetector::new(config).expect("valid config");
     for (i, (pose, pts)) in scans.iter().enumerate().take(scans.len() - 1) {
-        det.detect(Scan { stamp_s: 0.1 * i as f64, points: pts }, *pose, &Mount::default());
+        det.detect(Scan { stamp_s: 0.1 * i as f64, points: pts, twist: None }, *pose, &Mount::default());
     }
     det
 }
@@ -51,17 +52,31 @@ fn bench(c: &mut Criterion) {
         g.bench_function(format!("{name}/detect"), |b| {
             b.iter(|| {
                 t += 0.1;
-                black_box(det.detect(Scan { stamp_s: t, points: &pts }, pose, &mount))
+                black_box(det.detect(Scan { stamp_s: t, points: &pts, twist: None }, pose, &mount))
             })
         });
         let mut det = base.clone();
         for stage in [Stage::Preprocess, Stage::Cluster, Stage::Fit] {
-            det.run_stage(Stage::Preprocess, Scan { stamp_s: 0.0, points: &pts }, pose, &mount);
+            det.run_stage(Stage::Preprocess, Scan { stamp_s: 0.0, points: &pts, twist: None }, pose, &mount);
             g.bench_function(format!("{name}/{stage:?}"), |b| {
-                b.iter(|| black_box(det.run_stage(stage, Scan { stamp_s: 0.0, points: &pts }, pose, &mount)))
+                b.iter(|| {
+                    black_box(det.run_stage(
+                        stage,
+                        Scan { stamp_s: 0.0, points: &pts, twist: None },
+                        pose,
+                        &mount,
+                    ))
+                })
             });
         }
     }
+    // The deskew runs inside the preprocessing pass, on the cropped returns of a turning robot.
+    let deskew = DetectorConfig { deskew: true, ..DetectorConfig::default() };
+    let mut det = warm(deskew, &scans);
+    let turning = Scan { stamp_s: 0.0, points: &pts, twist: Some(Twist2::new(0.5, 0.2)) };
+    g.bench_function("deskew/Preprocess", |b| {
+        b.iter(|| black_box(det.run_stage(Stage::Preprocess, turning, pose, &mount)))
+    });
     g.finish();
 }
 

@@ -224,6 +224,8 @@ impl Navigator {
         let pose = self.drift.correct(input.stamp_s, input.odom);
         let detection = input.scan.map(|scan| {
             if (scan.stamp_s - input.stamp_s).abs() <= tolerance {
+                // The odometry's twist undoes the scan's motion skew unless the caller gave its own.
+                let scan = Scan { twist: scan.twist.or(Some(input.odom_twist)), ..scan };
                 self.detector.detect(scan, pose, input.mount)
             } else {
                 Detection::empty(scan.stamp_s, RowStatus::InvalidInput)
@@ -419,7 +421,7 @@ mod tests {
                 stamp_s: t,
                 odom: Pose2::default(),
                 odom_twist: Twist2::ZERO,
-                scan: Some(Scan { stamp_s: scan_t, points: &points }),
+                scan: Some(Scan { stamp_s: scan_t, points: &points, twist: None }),
                 mount: &mount,
                 mpc_budget: None,
             })

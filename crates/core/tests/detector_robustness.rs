@@ -13,7 +13,7 @@ fn tracking(config: DetectorConfig) -> (RowDetector, Lidar, Field) {
     for i in 0..30 {
         let pose = Pose2::new(0.1 * i as f64, 0.0, 0.0);
         let pts = lidar.scan(&field, &pose, &Mount::default());
-        det.detect(Scan { stamp_s: 0.1 * i as f64, points: &pts }, pose, &Mount::default());
+        det.detect(Scan { stamp_s: 0.1 * i as f64, points: &pts, twist: None }, pose, &Mount::default());
     }
     (det, lidar, field)
 }
@@ -26,21 +26,21 @@ fn step(
     pose: Pose2,
 ) -> croprow_core::Detection {
     let pts = lidar.scan(field, &pose, &Mount::default());
-    det.detect(Scan { stamp_s: t, points: &pts }, pose, &Mount::default())
+    det.detect(Scan { stamp_s: t, points: &pts, twist: None }, pose, &Mount::default())
 }
 
 #[test]
 fn empty_and_non_finite_scans_are_invalid_input() {
     let mut det = RowDetector::new(DetectorConfig::default()).unwrap();
     let m = Mount::default();
-    let d = det.detect(Scan { stamp_s: 0.0, points: &[] }, Pose2::default(), &m);
+    let d = det.detect(Scan { stamp_s: 0.0, points: &[], twist: None }, Pose2::default(), &m);
     assert_eq!(d.status, RowStatus::InvalidInput);
     let junk = [Point3::new(f32::NAN, 1.0, 0.0), Point3::new(f32::INFINITY, 0.0, 0.0)];
-    let d = det.detect(Scan { stamp_s: 0.1, points: &junk }, Pose2::default(), &m);
+    let d = det.detect(Scan { stamp_s: 0.1, points: &junk, twist: None }, Pose2::default(), &m);
     assert_eq!(d.status, RowStatus::InvalidInput);
-    let d = det.detect(Scan { stamp_s: f64::NAN, points: &junk }, Pose2::default(), &m);
+    let d = det.detect(Scan { stamp_s: f64::NAN, points: &junk, twist: None }, Pose2::default(), &m);
     assert_eq!(d.status, RowStatus::InvalidInput);
-    let d = det.detect(Scan { stamp_s: 0.2, points: &junk }, Pose2::new(f64::NAN, 0.0, 0.0), &m);
+    let d = det.detect(Scan { stamp_s: 0.2, points: &junk, twist: None }, Pose2::new(f64::NAN, 0.0, 0.0), &m);
     assert_eq!(d.status, RowStatus::InvalidInput);
 }
 
@@ -53,7 +53,7 @@ fn non_finite_points_among_good_ones_are_skipped() {
         for p in pts.iter_mut().step_by(7) {
             *p = Point3::new(f32::NAN, f32::INFINITY, f32::NEG_INFINITY);
         }
-        let d = det.detect(Scan { stamp_s: 3.0, points: &pts }, pose, &Mount::default());
+        let d = det.detect(Scan { stamp_s: 3.0, points: &pts, twist: None }, pose, &Mount::default());
         assert_eq!(d.status, RowStatus::Tracking);
         assert!(d.left.is_some_and(|r| r.line.iter().all(|v| v.is_finite())));
     }
@@ -129,7 +129,7 @@ fn a_confirmed_odometry_jump_restarts_the_map() {
         let t = 0.1 * i as f64;
         // The field moves with the origin.
         let pts = lidar.scan(&field, &Pose2::new(t, 0.0, 0.0), &Mount::default());
-        last = Some(det.detect(Scan { stamp_s: t, points: &pts }, shift(t), &Mount::default()));
+        last = Some(det.detect(Scan { stamp_s: t, points: &pts, twist: None }, shift(t), &Mount::default()));
     }
     let d = last.unwrap();
     assert_eq!(d.status, RowStatus::Tracking);
@@ -145,7 +145,8 @@ fn an_absurd_mount_is_invalid_input() {
         Mount { pitch_rad: f64::NAN, ..Mount::default() },
         Mount { roll_rad: 3.0, ..Mount::default() },
     ] {
-        let d = det.detect(Scan { stamp_s: 3.0, points: &pts }, Pose2::new(3.0, 0.0, 0.0), &mount);
+        let d =
+            det.detect(Scan { stamp_s: 3.0, points: &pts, twist: None }, Pose2::new(3.0, 0.0, 0.0), &mount);
         assert_eq!(d.status, RowStatus::InvalidInput);
     }
 }
@@ -195,7 +196,7 @@ proptest! {
         let config = if paper { DetectorConfig::paper() } else { DetectorConfig::default() };
         let mut det = RowDetector::new(config).unwrap();
         for (i, pts) in scans.iter().enumerate() {
-            let d = det.detect(Scan { stamp_s: 0.1 * i as f64, points: pts }, Pose2::new(0.1 * i as f64, 0.0, 0.0), &Mount::default());
+            let d = det.detect(Scan { stamp_s: 0.1 * i as f64, points: pts, twist: None }, Pose2::new(0.1 * i as f64, 0.0, 0.0), &Mount::default());
             for r in d.left.iter().chain(d.right.iter()) {
                 prop_assert!(r.line.iter().all(|v| v.is_finite()));
                 prop_assert!(r.offset_m.is_finite() && r.heading_rad.is_finite() && r.curvature_per_m.is_finite());

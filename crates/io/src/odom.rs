@@ -8,8 +8,8 @@
 use std::collections::VecDeque;
 use std::fmt;
 
-use croprow_core::Pose2;
 use croprow_core::geometry::wrap_angle;
+use croprow_core::{Pose2, Twist2};
 
 /// Why no odometry pose exists at a stamp.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -120,6 +120,24 @@ impl History {
         if pose.is_finite() { Ok(pose) } else { Err(PoseGap::Overflow { before_s: a, after_s: b }) }
     }
 
+    /// The body twist at `stamp_s` (v, ω in `base_link`) from the difference of the two samples the
+    /// pose there is blended from; `None` where there is no pose or the two samples share a stamp.
+    pub fn twist_at(&self, stamp_s: f64) -> Option<Twist2> {
+        let ((a, b), _) = self.blend_at(stamp_s).ok()?;
+        let find = |t: f64| self.samples.iter().find(|s| s.0 == t).map(|s| s.1);
+        let (pa, pb) = (find(a)?, find(b)?);
+        let dt = b - a;
+        if dt <= 0.0 {
+            return None;
+        }
+        // The chord's direction is the mean heading over the interval: its projection on it is the
+        // forward speed of a planar body.
+        let mid = pa.yaw + 0.5 * wrap_angle(pb.yaw - pa.yaw);
+        let (dx, dy) = (pb.x - pa.x, pb.y - pa.y);
+        let twist = Twist2::new((dx * mid.cos() + dy * mid.sin()) / dt, wrap_angle(pb.yaw - pa.yaw) / dt);
+        twist.is_finite().then_some(twist)
+    }
+
     /// The blended pose at `stamp_s` and the stamps of the two samples it came from.
     fn blend_at(&self, stamp_s: f64) -> Result<((f64, f64), Pose2), PoseGap> {
         let (Some(&first), Some(&last)) = (self.samples.front(), self.samples.back()) else {
@@ -181,6 +199,16 @@ mod tests {
         let short = wrap_angle(3.0 + 0.25 * wrap_angle(-3.0 - 3.0));
         assert!((p.yaw - short).abs() < 1e-9, "{p:?}");
         assert!(p.yaw > 3.0);
+    }
+
+    #[test]
+    fn twist_is_the_samples_difference_in_base_link() {
+        let mut h = History::new(0.05, 0.5);
+        h.push(1.0, Pose2::new(0.0, 0.0, 1.0)).unwrap();
+        h.push(1.1, Pose2::new(0.05 * 1.02_f64.cos(), 0.05 * 1.02_f64.sin(), 1.04)).unwrap();
+        let t = h.twist_at(1.05).unwrap();
+        assert!((t.v - 0.5).abs() < 1e-9 && (t.omega - 0.4).abs() < 1e-9, "{t:?}");
+        assert_eq!(History::new(0.05, 0.5).twist_at(1.0), None);
     }
 
     #[test]

@@ -26,7 +26,7 @@ use std::fs::File;
 use std::io::{BufReader, Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 
-use croprow_core::{ConfigError, Mount, Point3, Pose2, Scan, error::check_range};
+use croprow_core::{ConfigError, Mount, Point3, Pose2, Scan, Twist2, error::check_range};
 use mcap::McapError;
 use mcap::sans_io::indexed_reader::{IndexedReadEvent, IndexedReader, IndexedReaderOptions};
 use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
@@ -255,6 +255,9 @@ pub struct ScanFrame<'a> {
     pub points: &'a [Point3],
     /// `odom -> base_link` at the scan stamp, or why there is none.
     pub odom_pose: Result<Pose2, PoseGap>,
+    /// Body twist at the scan stamp from the odometry poses around it (the recording's own twist
+    /// fields are often zero or in another frame), for the detector's deskew; `None` without a pose.
+    pub odom_twist: Option<Twist2>,
     /// `base_link -> frame_id`.
     pub mount: Mount,
     /// Where the mount came from.
@@ -264,7 +267,7 @@ pub struct ScanFrame<'a> {
 impl ScanFrame<'_> {
     /// The scan as the detector takes it.
     pub fn scan(&self) -> Scan<'_> {
-        Scan { stamp_s: self.stamp_s, points: self.points }
+        Scan { stamp_s: self.stamp_s, points: self.points, twist: self.odom_twist }
     }
 }
 
@@ -857,6 +860,7 @@ impl Replay {
         let previous = std::mem::replace(&mut self.current, front.points);
         self.state.pool.push(previous);
         let odom_pose = self.state.odom.pose_at(front.stamp_s);
+        let odom_twist = self.state.odom.twist_at(front.stamp_s);
         self.state.odom.forget_before(front.stamp_s - self.state.config.max_extrapolation_s);
         let (mount, mount_source) = match self.state.mount_for(&front.frame_id) {
             Ok(m) => m,
@@ -874,6 +878,7 @@ impl Replay {
             frame_id: &self.state.current_frame,
             points: &self.current,
             odom_pose,
+            odom_twist,
             mount,
             mount_source,
         }))

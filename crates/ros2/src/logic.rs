@@ -345,7 +345,7 @@ impl NodeCore {
             stamp_s: step_s,
             odom: pose,
             odom_twist: twist,
-            scan: Some(Scan { stamp_s, points: &self.points }),
+            scan: Some(Scan { stamp_s, points: &self.points, twist: None }),
             mount: &mount,
             mpc_budget: self.budget(),
         };

@@ -549,7 +549,7 @@ impl ClosedLoop {
                 stamp_s: t,
                 odom,
                 odom_twist,
-                scan: scan.map(|s| Scan { stamp_s: s.stamp_s, points: s.points }),
+                scan: scan.map(|s| Scan { stamp_s: s.stamp_s, points: s.points, twist: None }),
                 mount: &self.mount,
                 mpc_budget: None,
             };

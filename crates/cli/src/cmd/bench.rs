@@ -170,7 +170,7 @@ fn time_detector(
     let mut times = Vec::with_capacity(scans.len());
     for (k, s) in scans.iter().enumerate() {
         let t0 = Instant::now();
-        let d = detector.detect(Scan { stamp_s: s.stamp_s, points: &s.points }, s.odom, &mount);
+        let d = detector.detect(Scan { stamp_s: s.stamp_s, points: &s.points, twist: None }, s.odom, &mount);
         let us = t0.elapsed().as_secs_f64() * 1e6;
         std::hint::black_box(d);
         if k >= DETECT_WARMUP_SCANS {

@@ -225,6 +225,18 @@ pub struct DetectorConfig {
     /// to move the 95th height percentile. Young crops keep their thin leaves' returns (dropping them
     /// took seed 451, tall weeds at the start, from 4 plants to 68).
     pub clutter_min_share: f64,
+    /// Undo the scan's motion skew before the points are used (see `perception::deskew`): each return
+    /// is moved from where the sensor was when it fired to where it is at the scan stamp, with the
+    /// body twist the scan carries ([`Scan::twist`](super::Scan::twist); a scan without a finite twist
+    /// is used as stamped). Default false (opt-in until a soak measures it).
+    pub deskew: bool,
+    /// Azimuth at which a sweep starts, degrees counter-clockwise from the sensor's +x, in the sensor
+    /// frame; the columns are fired clockwise seen from above. Default 180 (behind the sensor: the
+    /// Velodyne driver's cut and the simulator's). Range [-360, 360].
+    pub deskew_sweep_start_deg: f64,
+    /// Duration of one sweep, s; the scan is stamped at its end. Default 0.1 (a VLP-16 at 10 Hz).
+    /// Range [0.01, 1].
+    pub deskew_period_s: f64,
 }
 
 impl Default for DetectorConfig {
@@ -281,6 +293,9 @@ impl Default for DetectorConfig {
             clutter_voxel_m: 0.2,
             clutter_min_points: 3,
             clutter_min_share: 0.03,
+            deskew: false,
+            deskew_sweep_start_deg: 180.0,
+            deskew_period_s: 0.1,
         }
     }
 }
@@ -361,6 +376,8 @@ impl DetectorConfig {
         check_range("detector.clutter_voxel_m", self.clutter_voxel_m, 0.01, 1.0)?;
         check_count("detector.clutter_min_points", self.clutter_min_points, 0, 1000)?;
         check_range("detector.clutter_min_share", self.clutter_min_share, 0.0, 1.0)?;
+        check_range("detector.deskew_sweep_start_deg", self.deskew_sweep_start_deg, -360.0, 360.0)?;
+        check_range("detector.deskew_period_s", self.deskew_period_s, 0.01, 1.0)?;
         Ok(())
     }
 }
@@ -406,6 +423,10 @@ mod tests {
         assert!(c.validate().unwrap_err().to_string().contains("detector.start_offset_tolerance_m"));
         let c = DetectorConfig { level_time_constant_s: f64::NAN, ..DetectorConfig::default() };
         assert!(c.validate().unwrap_err().to_string().contains("detector.level_time_constant_s"));
+        let c = DetectorConfig { deskew_period_s: 0.0, ..DetectorConfig::default() };
+        assert!(c.validate().unwrap_err().to_string().contains("detector.deskew_period_s"));
+        let c = DetectorConfig { deskew_sweep_start_deg: f64::NAN, ..DetectorConfig::default() };
+        assert!(c.validate().unwrap_err().to_string().contains("detector.deskew_sweep_start_deg"));
     }
 
     #[test]

@@ -4,7 +4,7 @@
 //! ```
 //! use croprow_core::{DetectorConfig, Mount, Pose2, RowDetector, RowStatus, Scan};
 //! let mut detector = RowDetector::new(DetectorConfig::default()).unwrap();
-//! let d = detector.detect(Scan { stamp_s: 0.0, points: &[] }, Pose2::default(), &Mount::default());
+//! let d = detector.detect(Scan { stamp_s: 0.0, points: &[], twist: None }, Pose2::default(), &Mount::default());
 //! assert_eq!(d.status, RowStatus::InvalidInput); // an empty scan
 //! ```
 
@@ -12,6 +12,7 @@ use crate::error::ConfigError;
 use crate::geometry::{Mount, Pose2, wrap_angle};
 
 use super::config::{DetectorConfig, DetectorMode};
+use super::deskew::Deskew;
 use super::lanes::Lanes;
 use super::map::CentroidMap;
 use super::paper::Paper;
@@ -111,7 +112,8 @@ impl RowDetector {
                 self.forget_rows();
             }
         }
-        if self.pre.run(t, scan.points, mount, &self.config, self.plane_rule()) == 0 {
+        let deskew = Deskew::new(scan.twist, &self.config);
+        if self.pre.run(t, scan.points, mount, &self.config, self.plane_rule(), deskew) == 0 {
             return invalid;
         }
         self.last = Some((t, odom));
@@ -130,7 +132,9 @@ impl RowDetector {
         let c = &self.config;
         match (stage, c.mode) {
             (Stage::Preprocess, _) => {
-                self.pre.run(scan.stamp_s, scan.points, mount, c, self.plane_rule()) + self.pre.canopy.len()
+                let deskew = Deskew::new(scan.twist, c);
+                self.pre.run(scan.stamp_s, scan.points, mount, c, self.plane_rule(), deskew)
+                    + self.pre.canopy.len()
             }
             (Stage::Cluster, DetectorMode::Paper) => {
                 self.paper.cluster_bins(&self.pre.canopy, mount.x_m, &odom, c, &mut self.map);

@@ -17,7 +17,7 @@
 //! use croprow_core::{DetectorConfig, Mount, Point3, Pose2, RowDetector, Scan};
 //! let mut detector = RowDetector::new(DetectorConfig::default())?;
 //! let points = vec![Point3::new(2.0, 0.3, -1.0); 10];
-//! let d = detector.detect(Scan { stamp_s: 0.0, points: &points }, Pose2::default(), &Mount::default());
+//! let d = detector.detect(Scan { stamp_s: 0.0, points: &points, twist: None }, Pose2::default(), &Mount::default());
 //! println!("{}: {:?} {:?}", d.status.as_str(), d.left, d.right);
 //! # Ok::<(), croprow_core::ConfigError>(())
 //! ```
@@ -25,6 +25,7 @@
 use serde::{Deserialize, Serialize};
 
 mod config;
+mod deskew;
 mod detector;
 mod lanes;
 mod level;
@@ -39,7 +40,7 @@ pub use detector::RowDetector;
 pub use detector::Stage;
 pub use level::{LevelStatus, Tilt};
 
-use crate::geometry::Point3;
+use crate::geometry::{Point3, Twist2};
 
 /// One LiDAR revolution, borrowed: points in the sensor frame (m) and the stamp of the scan (s).
 ///
@@ -51,6 +52,10 @@ pub struct Scan<'a> {
     pub stamp_s: f64,
     /// Points in the sensor frame, m.
     pub points: &'a [Point3],
+    /// Body twist of `base_link` over the sweep (v, ω in `base_link`), for undoing the motion skew
+    /// (`detector.deskew`). `None`, or a non-finite twist, leaves the scan as stamped. The
+    /// [`Navigator`](crate::Navigator) fills it from `NavInput::odom_twist` when it is `None`.
+    pub twist: Option<Twist2>,
 }
 
 /// What the detector knows about the rows after a scan. Outcomes are data: the caller decides.

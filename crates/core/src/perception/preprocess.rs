@@ -16,6 +16,7 @@
 use crate::geometry::{Mount, Point3};
 
 use super::config::DetectorConfig;
+use super::deskew::Deskew;
 use super::level::Level;
 
 /// Height histogram bin, m, and its span below/above `base_link`'s origin for the robust plane.
@@ -167,8 +168,8 @@ impl Preprocessor {
         }
     }
 
-    /// Crops `points` (stamped `t_s`, s), clears them of clutter and levels them under the percentile
-    /// rule, and splits off the canopy. Returns the number of finite points in the scan. Never allocates once the buffers have
+    /// Crops `points` (stamped `t_s`, s), undoes their motion skew when `deskew` is given, clears them
+    /// of clutter and levels them under the percentile rule, and splits off the canopy. Returns the number of finite points in the scan. Never allocates once the buffers have
     /// grown to the largest scan seen.
     pub(crate) fn run(
         &mut self,
@@ -177,6 +178,7 @@ impl Preprocessor {
         mount: &Mount,
         config: &DetectorConfig,
         rule: PlaneRule,
+        deskew: Option<Deskew>,
     ) -> usize {
         self.cropped.clear();
         self.canopy.clear();
@@ -202,7 +204,13 @@ impl Preprocessor {
                 continue;
             }
             let z = f.r[2][0] * p.x + f.r[2][1] * p.y + f.r[2][2] * p.z + f.t[2];
-            self.cropped.push([dx + f.t[0], dy + f.t[1], z]);
+            // Deskewed after the crop: only the kept returns pay for it, and the crop's edges move by
+            // millimetres at most.
+            let b = [dx + f.t[0], dy + f.t[1], z];
+            self.cropped.push(match &deskew {
+                Some(d) => d.apply(p, b),
+                None => b,
+            });
         }
         if rule == PlaneRule::Percentile {
             self.clutter.retain_dense(
@@ -307,7 +315,7 @@ mod tests {
             Point3::new(f32::NAN, 0.0, 0.0),
         ];
         let mut pre = Preprocessor::new(8, &cfg);
-        let finite = pre.run(0.0, &pts, &mount, &cfg, PlaneRule::Centroid);
+        let finite = pre.run(0.0, &pts, &mount, &cfg, PlaneRule::Centroid, None);
         assert_eq!(finite, 5);
         assert_eq!(pre.cropped.len(), 2);
         assert!((pre.plane_z_m - 0.25).abs() < 1e-4, "{}", pre.plane_z_m);
@@ -331,7 +339,7 @@ mod tests {
         // through; the percentile rule puts the plane near 0.2 m.
         let pts = ground_with_plant_tops(&mount);
         let mut pre = Preprocessor::new(8, &cfg);
-        pre.run(0.0, &pts, &mount, &cfg, PlaneRule::Percentile);
+        pre.run(0.0, &pts, &mount, &cfg, PlaneRule::Percentile, None);
         assert!((pre.plane_z_m - 0.2).abs() < 0.02, "{}", pre.plane_z_m);
         assert_eq!(pre.canopy.len(), 10);
     }
@@ -346,7 +354,7 @@ mod tests {
         let mut pts = ground_with_plant_tops(&mount);
         pts.push(sensor_point(&mount, [2.5, 0.2, 1.2]));
         let mut pre = Preprocessor::new(8, &cfg);
-        pre.run(0.0, &pts, &mount, &cfg, PlaneRule::Percentile);
+        pre.run(0.0, &pts, &mount, &cfg, PlaneRule::Percentile, None);
         assert_eq!(pre.canopy.len(), 10);
         assert!(pre.canopy.iter().all(|p| p[2] < 0.3), "{:?}", pre.canopy);
     }
@@ -369,11 +377,11 @@ mod tests {
         let pts: Vec<Point3> = ground_with_plant_tops(&mount).into_iter().chain(dust(&mount, 12)).collect();
         let kept = DetectorConfig { clutter_min_points: 0, ..DetectorConfig::default() };
         let mut pre = Preprocessor::new(8, &kept);
-        pre.run(0.0, &pts, &mount, &kept, PlaneRule::Percentile);
+        pre.run(0.0, &pts, &mount, &kept, PlaneRule::Percentile, None);
         assert!(pre.plane_z_m > 0.4, "the dust no longer lifts the plane: {}", pre.plane_z_m);
         let cfg = DetectorConfig::default();
         let mut pre = Preprocessor::new(8, &cfg);
-        pre.run(0.0, &pts, &mount, &cfg, PlaneRule::Percentile);
+        pre.run(0.0, &pts, &mount, &cfg, PlaneRule::Percentile, None);
         assert_eq!(pre.cropped.len(), 100);
         assert!((pre.plane_z_m - 0.2).abs() < 0.02, "{}", pre.plane_z_m);
         assert_eq!(pre.canopy.len(), 10);
@@ -408,7 +416,7 @@ mod tests {
         let pts: Vec<Point3> = ground_with_plant_tops(&mount).into_iter().chain(dust(&mount, 2)).collect();
         let cfg = DetectorConfig::default();
         let mut pre = Preprocessor::new(8, &cfg);
-        pre.run(0.0, &pts, &mount, &cfg, PlaneRule::Percentile);
+        pre.run(0.0, &pts, &mount, &cfg, PlaneRule::Percentile, None);
         assert_eq!(pre.cropped.len(), 102);
     }
 }

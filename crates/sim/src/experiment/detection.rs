@@ -369,11 +369,11 @@ pub fn run_detection_with(
         points.clear();
         points.extend_from_slice(scan.points);
         let truth = scan.truth.pose;
-        let odom = if perfect {
-            truth
+        let (odom, twist) = if perfect {
+            (truth, step.true_twist)
         } else {
             ekf.predict_to(stamp_s)?;
-            ekf.pose()
+            (ekf.pose(), ekf.twist())
         };
         scans += 1;
         point_sum += points.len();
@@ -381,7 +381,11 @@ pub fn run_detection_with(
         let x = lane_x(field, lane, &truth);
         let to_end_m = if x < end_x { arc_length(field, x, end_x) } else { -arc_length(field, end_x, x) };
         for (detector, st) in detectors.iter_mut().zip(stats.iter_mut()) {
-            let d = detector.detect(croprow_core::Scan { stamp_s, points: &points }, odom, &mount);
+            let d = detector.detect(
+                croprow_core::Scan { stamp_s, points: &points, twist: Some(twist) },
+                odom,
+                &mount,
+            );
             st.record(field, &truth, &d, to_end_m);
         }
         progress(((x - start_x) / total_m).clamp(0.0, 1.0));
