@@ -1,7 +1,7 @@
 //! Soak seeds (issue 6) that touched plants with no fault at all, all grown soybean while following:
-//! the slide test declared a false slide, the robot turned into it, and the motion skew of the scans
-//! taken while it turned read as more slide, growing it to its bound (docs/faults.md, "Contacts with
-//! no fault"). Guards `DetectorConfig::deskew` (opt-in, off by default): each test replays the seed's
+//! the slide test declared a false slide, the robot turned into it, and the slide grew to its bound,
+//! the motion skew of the scans taken while it turned reading as more slide (docs/faults.md, "Contacts
+//! with no fault"; "Motion deskew" shows the growth also happens without skew, seed 611). Guards `DetectorConfig::deskew` (opt-in, off by default): each test replays the seed's
 //! case as `soak_case` draws it, asserts that it touches plants with the scans used as stamped, and
 //! that it runs clean with each return moved to the pose at the scan stamp. The summary check catches
 //! a generator that changed.
