@@ -51,7 +51,14 @@ impl Deskew {
     pub(crate) fn offset_s(&self, p: &Point3) -> f32 {
         // Clockwise spin: the azimuth falls as time goes on, so the share of the sweep done when `p` was
         // fired is how far its azimuth lies clockwise of the start.
-        let done = (self.start_turns - atan2_turns(p.y, p.x)).rem_euclid(1.0);
+        // The difference lies in (−0.5, 1.5): one add or subtract wraps it, as `rem_euclid(1.0)` would,
+        // without its call to `fmodf` per return.
+        let mut done = self.start_turns - atan2_turns(p.y, p.x);
+        if done < 0.0 {
+            done += 1.0;
+        } else if done >= 1.0 {
+            done -= 1.0;
+        }
         (done - 1.0) * self.period_s
     }
 
