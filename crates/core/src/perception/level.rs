@@ -99,34 +99,46 @@ pub struct Tilt {
 }
 
 /// One grid cell: how many returns fell in it and the lowest [`LOW_RANK`] of them, by height.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy)]
 struct Cell {
     n: u32,
+    /// Sorted by height, lowest first; the places not yet filled hold an infinite height.
     low: [[f32; 3]; LOW_RANK],
 }
 
+impl Default for Cell {
+    fn default() -> Self {
+        Self { n: 0, low: [[0.0, 0.0, f32::INFINITY]; LOW_RANK] }
+    }
+}
+
 impl Cell {
+    /// Adds the finite return `p`: it goes after every entry as low as it or lower, the entries above
+    /// it move up by one and the highest drops out.
     fn insert(&mut self, p: [f32; 3]) {
-        let k = (self.n as usize).min(LOW_RANK);
         self.n = self.n.saturating_add(1);
-        // Most returns of a full cell lie above its lowest few: nothing to move.
-        if k == LOW_RANK && self.low.last().is_some_and(|q| q[2] <= p[2]) {
+        // Most returns of a full cell lie above its lowest few: nothing to move (a cell not yet full
+        // has an infinite last height).
+        if self.low.last().is_some_and(|q| q[2] <= p[2]) {
             return;
         }
-        // Insertion into the sorted short list: shift higher entries up by one, drop the highest.
-        let mut i = k;
-        while i > 0 {
-            let Some(&prev) = self.low.get(i - 1) else { break };
-            if prev[2] <= p[2] {
-                break;
-            }
-            if let Some(slot) = self.low.get_mut(i) {
-                *slot = prev;
-            }
-            i -= 1;
-        }
-        if let Some(slot) = self.low.get_mut(i) {
-            *slot = p;
+        // Each place takes the entry below it, `p` or its own entry, chosen by comparisons rather than
+        // found by a search: a cell's returns come in no order of height, and the search's branches
+        // mispredicted. Empty places are infinitely high, so `p` fills the first of them.
+        let old = self.low;
+        let mut after_p = false;
+        let mut below = p;
+        for (slot, q) in self.low.iter_mut().zip(old) {
+            let p_before_q = p[2] < q[2];
+            *slot = if after_p {
+                below
+            } else if p_before_q {
+                p
+            } else {
+                q
+            };
+            after_p = p_before_q;
+            below = q;
         }
     }
 }
@@ -158,8 +170,12 @@ pub(crate) struct Level {
     /// Cell heights `(x, y, z)` relative to the sensor origin (x, y) and `base_link` (z), m.
     samples: Vec<[f64; 3]>,
     /// The scan's finite cropped points relative to the sensor origin (x, y) and `base_link` (z), m:
-    /// converted once for the four refit passes, and only when a fit gets that far.
-    relative: Vec<[f64; 3]>,
+    /// converted once for the four refit passes, in the binning pass, which computes them anyway (a
+    /// refused fit pays only their stores).
+    relative: Columns,
+    /// A refit pass's Tukey weight of each of `relative`, and the indices of those with a weight.
+    weights: Vec<f64>,
+    weighted: Vec<usize>,
     residuals: Vec<f64>,
     rng: Rng,
     /// Filtered (roll, pitch), rad, and the stamp of the last fit that updated it, s.
@@ -182,7 +198,9 @@ impl Level {
             cell_m,
             half_width_m: nx as f64 * cell_m,
             samples: Vec::with_capacity(nx * ny),
-            relative: Vec::new(),
+            relative: Columns::default(),
+            weights: Vec::new(),
+            weighted: Vec::new(),
             residuals: Vec::with_capacity(nx * ny),
             rng: Rng::new(SEED),
             estimate: None,
@@ -219,7 +237,7 @@ impl Level {
         }
         self.fill_samples(cropped, origin);
         let bound = config.level_max_tilt_deg.to_radians();
-        match self.fit(cropped, origin, config.level_min_cells, bound) {
+        match self.fit(config.level_min_cells, bound) {
             Some((roll, pitch)) => {
                 let raw = (roll.clamp(-bound, bound), pitch.clamp(-bound, bound));
                 let next = match (self.estimate, self.last_fit_s) {
@@ -244,16 +262,29 @@ impl Level {
         Some(Rotation3::from_euler_angles(roll, pitch, 0.0).transpose())
     }
 
-    /// Bins the cropped points around the sensor and keeps each full cell's height.
+    /// Bins the cropped points around the sensor and keeps each full cell's height, and keeps the
+    /// finite points relative to the sensor for the refit (`relative`).
     fn fill_samples(&mut self, cropped: &[[f32; 3]], origin: [f32; 3]) {
         self.cells.iter_mut().for_each(|c| *c = Cell::default());
         let inv = 1.0 / self.cell_m;
+        // Written slot by slot and cut to the count at the end (the slots left from the last scan are
+        // overwritten first): no push's capacity check per column and point.
+        let Columns { x: xs, y: ys, z: zs } = &mut self.relative;
+        for column in [&mut *xs, &mut *ys, &mut *zs] {
+            column.resize(cropped.len(), 0.0);
+        }
+        let mut finite = 0;
         for p in cropped {
             if !p.iter().all(|v| v.is_finite()) {
                 continue;
             }
-            let dx = (p[0] - origin[0]) as f64;
-            let dy = (p[1] - origin[1]) as f64 + self.half_width_m;
+            let (dx, rel_y) = ((p[0] - origin[0]) as f64, (p[1] - origin[1]) as f64);
+            if let (Some(x), Some(y), Some(z)) = (xs.get_mut(finite), ys.get_mut(finite), zs.get_mut(finite))
+            {
+                (*x, *y, *z) = (dx, rel_y, p[2] as f64);
+            }
+            finite += 1;
+            let dy = rel_y + self.half_width_m;
             if dx < 0.0 || dy < 0.0 {
                 continue;
             }
@@ -267,6 +298,9 @@ impl Level {
                 c.insert([p[0] - origin[0], p[1] - origin[1], p[2]]);
             }
         }
+        for column in [xs, ys, zs] {
+            column.truncate(finite);
+        }
         self.samples.clear();
         for c in self.cells.iter().filter(|c| c.n as usize >= LOW_RANK) {
             if let Some(p) = c.low.last() {
@@ -276,13 +310,7 @@ impl Level {
     }
 
     /// The robust plane of the cell heights as (roll, pitch), rad, or `None` when refused.
-    fn fit(
-        &mut self,
-        cropped: &[[f32; 3]],
-        origin: [f32; 3],
-        min_cells: usize,
-        bound_rad: f64,
-    ) -> Option<(f64, f64)> {
+    fn fit(&mut self, min_cells: usize, bound_rad: f64) -> Option<(f64, f64)> {
         let n = self.samples.len();
         if n < min_cells.max(3) {
             return None;
@@ -326,11 +354,8 @@ impl Level {
         // field. The returns themselves scatter evenly about the surface: refit them.
         // Every return, not a subsample: refitting an even subsample of 2048 returns in 2 passes moved
         // Table I's grown-soybean following from 1.07 to 1.38 cm.
-        let relative = |p: &[f32; 3]| [(p[0] - origin[0]) as f64, (p[1] - origin[1]) as f64, p[2] as f64];
-        self.relative.clear();
-        self.relative.extend(cropped.iter().filter(|p| p.iter().all(|v| v.is_finite())).map(relative));
         for _ in 0..REFINE_PASSES {
-            plane = refine(&plane, self.relative.iter().copied())?;
+            plane = self.refine_returns(&plane)?;
         }
         let pitch = -plane.a.atan();
         let roll = plane.b.atan2((1.0 + plane.a * plane.a).sqrt());
@@ -347,6 +372,36 @@ impl Level {
         let mid = self.residuals.len() / 2;
         let (_, &mut c, _) = self.residuals.select_nth_unstable_by(mid, f64::total_cmp);
         Some(Plane { a, b, c })
+    }
+
+    /// [`refine`] over the scan's returns (`relative`), the same sums in the same order, in three
+    /// loops: every return's weight (no branch, two returns per instruction), the indices of the
+    /// returns with a weight (no branch either), and their sums. A loop that skipped the returns past
+    /// the cut-off as it summed would mispredict at every change of side along the rings, a thousand
+    /// times a pass.
+    fn refine_returns(&mut self, plane: &Plane) -> Option<Plane> {
+        let Columns { x, y, z } = &self.relative;
+        self.weights.resize(x.len(), 0.0);
+        for (((w, &x), &y), &z) in self.weights.iter_mut().zip(x).zip(y).zip(z) {
+            *w = tukey_weight(plane.residual(&[x, y, z]));
+        }
+        self.weighted.resize(x.len(), 0);
+        let mut n = 0;
+        for (i, &w) in self.weights.iter().enumerate() {
+            if let Some(slot) = self.weighted.get_mut(n) {
+                *slot = i;
+            }
+            n += usize::from(w != 0.0);
+        }
+        let mut sums = NormalSums::default();
+        for &i in self.weighted.iter().take(n) {
+            if let (Some(&w), Some(&x), Some(&y), Some(&z)) =
+                (self.weights.get(i), x.get(i), y.get(i), z.get(i))
+            {
+                sums.add(w, &[x, y, z]);
+            }
+        }
+        sums.solve()
     }
 
     fn inliers(&self, plane: &Plane) -> usize {
@@ -372,33 +427,73 @@ impl Level {
     }
 }
 
+/// Points as one column per axis, m: a loop over them reads each axis contiguously, two points per
+/// instruction.
+#[derive(Debug, Clone, Default)]
+struct Columns {
+    x: Vec<f64>,
+    y: Vec<f64>,
+    z: Vec<f64>,
+}
+
+/// Tukey biweight of a point `residual` m off the plane: 0 at and past the cut-off, and only there
+/// (inside it 1 − u² ≥ 2⁻⁵³, whose square is far from underflow); NaN for a NaN residual, which is
+/// not cut off.
+fn tukey_weight(residual: f64) -> f64 {
+    let u = residual / TUKEY_M;
+    if u.abs() >= 1.0 { 0.0 } else { (1.0 - u * u) * (1.0 - u * u) }
+}
+
+/// The weighted least-squares normal equations of a plane `z = c + a·x + b·y`: the six distinct sums
+/// of the symmetric matrix and the three of the right-hand side, accumulated by hand (hot loop).
+#[derive(Debug, Clone, Copy, Default)]
+struct NormalSums {
+    sw: f64,
+    sx: f64,
+    sy: f64,
+    sxx: f64,
+    sxy: f64,
+    syy: f64,
+    sz: f64,
+    sxz: f64,
+    syz: f64,
+}
+
+impl NormalSums {
+    fn add(&mut self, w: f64, s: &[f64; 3]) {
+        let (wx, wy) = (w * s[0], w * s[1]);
+        self.sw += w;
+        self.sx += wx;
+        self.sy += wy;
+        self.sxx += wx * s[0];
+        self.sxy += wx * s[1];
+        self.syy += wy * s[1];
+        self.sz += w * s[2];
+        self.sxz += wx * s[2];
+        self.syz += wy * s[2];
+    }
+
+    /// The plane, `None` when the sums do not fix one.
+    fn solve(&self) -> Option<Plane> {
+        let m =
+            Matrix3::new(self.sw, self.sx, self.sy, self.sx, self.sxx, self.sxy, self.sy, self.sxy, self.syy);
+        let p = m.cholesky()?.solve(&Vector3::new(self.sz, self.sxz, self.syz));
+        let plane = Plane { c: p.x, a: p.y, b: p.z };
+        [plane.a, plane.b, plane.c].iter().all(|v| v.is_finite()).then_some(plane)
+    }
+}
+
 /// One Tukey-weighted least-squares pass of `samples` (x, y, z, m) from `plane`; `None` when too few
 /// lie near it to fix a plane.
 fn refine(plane: &Plane, samples: impl Iterator<Item = [f64; 3]>) -> Option<Plane> {
-    // The six distinct sums of the symmetric normal equations, accumulated by hand (hot loop).
-    let (mut sw, mut sx, mut sy, mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-    let (mut sz, mut sxz, mut syz) = (0.0, 0.0, 0.0);
+    let mut sums = NormalSums::default();
     for s in samples {
-        let u = plane.residual(&s) / TUKEY_M;
-        if u.abs() >= 1.0 {
-            continue;
+        let w = tukey_weight(plane.residual(&s));
+        if w != 0.0 {
+            sums.add(w, &s);
         }
-        let w = (1.0 - u * u) * (1.0 - u * u);
-        let (wx, wy) = (w * s[0], w * s[1]);
-        sw += w;
-        sx += wx;
-        sy += wy;
-        sxx += wx * s[0];
-        sxy += wx * s[1];
-        syy += wy * s[1];
-        sz += w * s[2];
-        sxz += wx * s[2];
-        syz += wy * s[2];
     }
-    let m = Matrix3::new(sw, sx, sy, sx, sxx, sxy, sy, sxy, syy);
-    let p = m.cholesky()?.solve(&Vector3::new(sz, sxz, syz));
-    let plane = Plane { c: p.x, a: p.y, b: p.z };
-    [plane.a, plane.b, plane.c].iter().all(|v| v.is_finite()).then_some(plane)
+    sums.solve()
 }
 
 /// The plane through three cell heights, `None` when they are (nearly) collinear in x-y.
@@ -455,6 +550,25 @@ mod tests {
             out = level.update(0.1 * k as f64, pts, ORIGIN, &cfg);
         }
         out
+    }
+
+    #[test]
+    fn a_cell_keeps_its_lowest_returns_first_come_first_among_equals() {
+        // Heights with many ties, in no order: after each return the cell holds the lowest
+        // `LOW_RANK` so far as a stable sort by height gives them (x tells the returns apart).
+        let heights = [0.3f32, 0.1, 0.3, 0.1, 0.2, 0.1, 0.05, 0.3, 0.05, 0.2, -0.1, 0.1, -0.1, 0.4];
+        let mut cell = Cell::default();
+        let mut seen: Vec<[f32; 3]> = Vec::new();
+        for (i, &z) in heights.iter().enumerate() {
+            let p = [i as f32, 0.0, z];
+            cell.insert(p);
+            seen.push(p);
+            let mut sorted = seen.clone();
+            sorted.sort_by(|a, b| a[2].total_cmp(&b[2]));
+            let filled = seen.len().min(LOW_RANK);
+            assert_eq!(cell.low.get(..filled), sorted.get(..filled), "after {i}");
+            assert_eq!(cell.n as usize, seen.len());
+        }
     }
 
     #[test]
