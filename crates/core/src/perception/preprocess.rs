@@ -238,7 +238,6 @@ impl Preprocessor {
         deskew: Option<Deskew>,
     ) -> usize {
         self.cropped.clear();
-        self.canopy.clear();
         let f = Frame::new(mount);
         let (r_max2, r_min2) =
             ((config.range_m * config.range_m) as f32, (config.min_range_m * config.min_range_m) as f32);
@@ -279,6 +278,7 @@ impl Preprocessor {
             self.level_cropped(t_s, f.t, config);
         }
         if self.cropped.is_empty() {
+            self.canopy.clear();
             self.plane_z_m = 0.0;
             return finite;
         }
@@ -291,9 +291,18 @@ impl Preprocessor {
         };
         self.plane_z_m = base + config.plane_raise_m as f32;
         let plane = self.plane_z_m;
-        self.canopy.extend(
-            self.cropped.iter().filter(|p| p[2] > plane && p[2] <= top).map(|p| [p[0], p[1], p[2] - plane]),
-        );
+        // Every return is written to the next free slot and only a canopy return takes it: canopy and
+        // ground returns alternate along the rings, and a branch on the side mispredicted at every
+        // change. The slots left from the last scan are overwritten before they are read.
+        self.canopy.resize(self.cropped.len(), [0.0; 3]);
+        let mut n = 0;
+        for p in &self.cropped {
+            if let Some(slot) = self.canopy.get_mut(n) {
+                *slot = [p[0], p[1], p[2] - plane];
+            }
+            n += usize::from(p[2] > plane && p[2] <= top);
+        }
+        self.canopy.truncate(n);
         finite
     }
 
