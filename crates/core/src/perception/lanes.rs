@@ -792,7 +792,7 @@ impl Lanes {
             let xi = (x - X_LO_M) * inv_bin;
             if (y - lane.centre(x)).abs() < reach
                 && xi >= 0.0
-                && let Some(v) = self.visible.get_mut(xi as usize)
+                && let Some(v) = self.visible.get_mut(bin_of(xi))
             {
                 *v += 1;
             }
@@ -844,7 +844,7 @@ impl Lanes {
     fn bin_index(&self, j: i32, x: f64, inv_bin: f64) -> Option<usize> {
         let row = usize::try_from(j - J_MIN).ok().filter(|&r| r < ROWS)?;
         let xi = (x - X_LO_M) * inv_bin;
-        (xi >= 0.0 && (xi as usize) < self.x_bins).then(|| row * self.x_bins + xi as usize)
+        (xi >= 0.0 && bin_of(xi) < self.x_bins).then(|| row * self.x_bins + bin_of(xi))
     }
 
     /// Collects this scan's bin centroids with enough points whose canopy peaks inside the gate of
@@ -1422,6 +1422,13 @@ fn circular_mean(hist: &[f64], period_m: f64) -> f64 {
 }
 
 /// Histogram bin of lateral coordinate `u`, m, if inside.
+/// The bin `xi` (≥ 0) falls in, as `xi as usize` gives it up to 2⁶³, beyond every bin: `as i64` is one
+/// instruction where `as usize` is a dozen (x86 has no unsigned 64-bit conversion), and this runs for
+/// every cropped return.
+fn bin_of(xi: f64) -> usize {
+    xi as i64 as usize
+}
+
 fn hist_index(u: f64) -> Option<usize> {
     let i = ((u + HIST_HALF_M) / HIST_BIN_M).floor();
     (i >= 0.0 && i < HIST_BINS as f64).then_some(i as usize)
