@@ -29,6 +29,7 @@ use crate::geometry::{Pose2, wrap_angle};
 
 use super::RowEstimate;
 use super::config::DetectorConfig;
+use super::interleave::for_each_interleaved;
 use super::map::CentroidMap;
 
 /// Offset that keeps row numbers positive for the truncating cast in [`Lane::assign`]; far beyond any
@@ -787,16 +788,17 @@ impl Lanes {
             }
         }
         let reach = 2.0 * lane.s;
-        for p in cropped {
+        let visible = &mut self.visible;
+        for_each_interleaved(cropped, |p| {
             let (x, y) = (p[0] as f64, p[1] as f64);
             let xi = (x - X_LO_M) * inv_bin;
             if (y - lane.centre(x)).abs() < reach
                 && xi >= 0.0
-                && let Some(v) = self.visible.get_mut(bin_of(xi))
+                && let Some(v) = visible.get_mut(bin_of(xi))
             {
                 *v += 1;
             }
-        }
+        });
     }
 
     /// Whether the canopy of bin `i` peaks inside its gate (half-width `gate`, m). A window `core` m either

@@ -17,6 +17,7 @@ use crate::geometry::{Mount, Point3};
 
 use super::config::DetectorConfig;
 use super::deskew::Deskew;
+use super::interleave::for_each_interleaved;
 use super::level::Level;
 
 /// Height histogram bin, m, and its span below/above `base_link`'s origin for the robust plane.
@@ -142,10 +143,13 @@ impl Clutter {
         Self::hash_points(points, 1.0 / voxel_m, &mut self.slots);
         // The mask keeps every slot inside the tables, so the indexing needs no bounds check.
         let slot = |s: u32| s as usize & (2 * VOXEL_SLOTS - 1);
-        for &s in self.slots.as_flattened() {
-            let c = &mut self.counts[slot(s)];
-            *c = c.saturating_add(1);
-        }
+        let counts = &mut self.counts;
+        for_each_interleaved(&self.slots, |&[s0, s1]| {
+            for s in [s0, s1] {
+                let c = &mut counts[slot(s)];
+                *c = c.saturating_add(1);
+            }
+        });
         let counts = &self.counts;
         let dense = |&[s0, s1]: &[u32; 2]| {
             usize::from(counts[slot(s0)]) >= min_points || usize::from(counts[slot(s1)]) >= min_points
@@ -332,12 +336,13 @@ impl Preprocessor {
     /// above the 5th) and the highest canopy return believed ([`ABOVE_TOP_M`] over the 95th).
     fn percentile_levels(&mut self, min_height_m: f32) -> (f32, f32) {
         self.z_hist.iter_mut().for_each(|c| *c = 0);
-        for p in &self.cropped {
+        let hist = &mut self.z_hist;
+        for_each_interleaved(&self.cropped, |p| {
             let i = ((p[2] - Z_MIN_M) / Z_BIN_M).clamp(0.0, (Z_BINS - 1) as f32) as usize;
-            if let Some(c) = self.z_hist.get_mut(i) {
+            if let Some(c) = hist.get_mut(i) {
                 *c += 1;
             }
-        }
+        });
         let n = self.cropped.len() as u64;
         let (lo, hi) = (quantile_bin(&self.z_hist, n, 5), quantile_bin(&self.z_hist, n, 95));
         let ground = Z_MIN_M + Z_BIN_M * (lo as f32 + 0.5);
