@@ -98,25 +98,30 @@ pub struct Tilt {
     pub support: usize,
 }
 
-/// One grid cell: how many returns fell in it and the lowest [`LOW_RANK`] of them, by height.
+/// One grid cell: the lowest [`LOW_RANK`] of the returns that fell in it, by height, lowest first.
+/// The places not yet filled hold an infinite height, so the cell holds `LOW_RANK` returns once its
+/// last height is finite: no count to raise per return, whose stores and reloads chained the returns
+/// of a cell one after the other.
 #[derive(Debug, Clone, Copy)]
 struct Cell {
-    n: u32,
-    /// Sorted by height, lowest first; the places not yet filled hold an infinite height.
     low: [[f32; 3]; LOW_RANK],
 }
 
 impl Default for Cell {
     fn default() -> Self {
-        Self { n: 0, low: [[0.0, 0.0, f32::INFINITY]; LOW_RANK] }
+        Self { low: [[0.0, 0.0, f32::INFINITY]; LOW_RANK] }
     }
 }
 
 impl Cell {
+    /// The cell's height, its [`LOW_RANK`]-th lowest return, once it holds that many.
+    fn height_return(&self) -> Option<&[f32; 3]> {
+        self.low.last().filter(|q| q[2] < f32::INFINITY)
+    }
+
     /// Adds the finite return `p`: it goes after every entry as low as it or lower, the entries above
     /// it move up by one and the highest drops out.
     fn insert(&mut self, p: [f32; 3]) {
-        self.n = self.n.saturating_add(1);
         // Most returns of a full cell lie above its lowest few: nothing to move (a cell not yet full
         // has an infinite last height).
         if self.low.last().is_some_and(|q| q[2] <= p[2]) {
@@ -302,10 +307,8 @@ impl Level {
             column.truncate(finite);
         }
         self.samples.clear();
-        for c in self.cells.iter().filter(|c| c.n as usize >= LOW_RANK) {
-            if let Some(p) = c.low.last() {
-                self.samples.push([p[0] as f64, p[1] as f64, p[2] as f64]);
-            }
+        for p in self.cells.iter().filter_map(Cell::height_return) {
+            self.samples.push([p[0] as f64, p[1] as f64, p[2] as f64]);
         }
     }
 
@@ -381,23 +384,24 @@ impl Level {
     /// times a pass.
     fn refine_returns(&mut self, plane: &Plane) -> Option<Plane> {
         let Columns { x, y, z } = &self.relative;
-        self.weights.resize(x.len(), 0.0);
-        for (((w, &x), &y), &z) in self.weights.iter_mut().zip(x).zip(y).zip(z) {
+        let len = x.len().min(y.len()).min(z.len());
+        self.weights.resize(len, 0.0);
+        self.weighted.resize(len, 0);
+        let (weights, weighted) = (&mut self.weights[..], &mut self.weighted[..]);
+        for (((w, &x), &y), &z) in weights.iter_mut().zip(x).zip(y).zip(z) {
             *w = tukey_weight(plane.residual(&[x, y, z]));
         }
-        self.weighted.resize(x.len(), 0);
         let mut n = 0;
-        for (i, &w) in self.weights.iter().enumerate() {
-            if let Some(slot) = self.weighted.get_mut(n) {
+        for (i, &w) in weights.iter().enumerate() {
+            if let Some(slot) = weighted.get_mut(n) {
                 *slot = i;
             }
             n += usize::from(w != 0.0);
         }
         let mut sums = NormalSums::default();
-        for &i in self.weighted.iter().take(n) {
-            if let (Some(&w), Some(&x), Some(&y), Some(&z)) =
-                (self.weights.get(i), x.get(i), y.get(i), z.get(i))
-            {
+        let (x, y, z) = (&x[..len], &y[..len], &z[..len]);
+        for &i in weighted.iter().take(n) {
+            if let (Some(&w), Some(&x), Some(&y), Some(&z)) = (weights.get(i), x.get(i), y.get(i), z.get(i)) {
                 sums.add(w, &[x, y, z]);
             }
         }
@@ -567,7 +571,7 @@ mod tests {
             sorted.sort_by(|a, b| a[2].total_cmp(&b[2]));
             let filled = seen.len().min(LOW_RANK);
             assert_eq!(cell.low.get(..filled), sorted.get(..filled), "after {i}");
-            assert_eq!(cell.n as usize, seen.len());
+            assert_eq!(cell.height_return(), sorted.get(LOW_RANK - 1), "after {i}");
         }
     }
 
