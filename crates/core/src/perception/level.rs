@@ -278,6 +278,10 @@ impl Level {
         for column in [&mut *xs, &mut *ys, &mut *zs] {
             column.resize(cropped.len(), 0.0);
         }
+        // Locals, so that the loop keeps them in registers rather than reloading them through `self`
+        // after every store.
+        let (xs, ys, zs) = (&mut xs[..], &mut ys[..], &mut zs[..]);
+        let (cells, nx, ny, half_width_m) = (&mut self.cells[..], self.nx, self.ny, self.half_width_m);
         let mut finite = 0;
         for p in cropped {
             if !p.iter().all(|v| v.is_finite()) {
@@ -289,20 +293,21 @@ impl Level {
                 (*x, *y, *z) = (dx, rel_y, p[2] as f64);
             }
             finite += 1;
-            let dy = rel_y + self.half_width_m;
+            let dy = rel_y + half_width_m;
             if dx < 0.0 || dy < 0.0 {
                 continue;
             }
             // `as i64` is one instruction where `as usize` is a dozen (x86 has no unsigned 64-bit
             // conversion); both are ≥ 0 here and saturate far beyond the grid, so the same cells.
             let (ix, iy) = ((dx * inv) as i64, (dy * inv) as i64);
-            if ix < self.nx as i64
-                && iy < self.ny as i64
-                && let Some(c) = self.cells.get_mut(iy as usize * self.nx + ix as usize)
+            if ix < nx as i64
+                && iy < ny as i64
+                && let Some(c) = cells.get_mut(iy as usize * nx + ix as usize)
             {
                 c.insert([p[0] - origin[0], p[1] - origin[1], p[2]]);
             }
         }
+        let Columns { x: xs, y: ys, z: zs } = &mut self.relative;
         for column in [xs, ys, zs] {
             column.truncate(finite);
         }

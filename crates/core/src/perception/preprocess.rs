@@ -253,24 +253,25 @@ impl Preprocessor {
             }
             finite += 1;
             let r2 = p.x * p.x + p.y * p.y + p.z * p.z;
-            if r2 > r_max2 || r2 < r_min2 {
-                continue;
-            }
+            let in_range = !(r2 > r_max2 || r2 < r_min2);
             // The FOV is horizontal, about the sensor origin, in base_link's heading: with a tilted
             // sensor that is what "frontal 120°" means on the ground.
             let dx = f.r[0][0] * p.x + f.r[0][1] * p.y + f.r[0][2] * p.z;
             let dy = f.r[1][0] * p.x + f.r[1][1] * p.y + f.r[1][2] * p.z;
-            if dx <= 0.0 || dy.abs() > dx * tan_half {
-                continue;
-            }
+            let in_fov = !(dx <= 0.0 || dy.abs() > dx * tan_half);
             let z = f.r[2][0] * p.x + f.r[2][1] * p.y + f.r[2][2] * p.z + f.t[2];
+            let b = [dx + f.t[0], dy + f.t[1], z];
+            // Every finite return is pushed, and the length then keeps or drops it: returns near the
+            // range's edge go in and out, and a branch on the crop mispredicted there.
+            let kept = in_range & in_fov;
+            let len = self.cropped.len();
             // Deskewed after the crop: only the kept returns pay for it, and the crop's edges move by
             // millimetres at most.
-            let b = [dx + f.t[0], dy + f.t[1], z];
             self.cropped.push(match &deskew {
-                Some(d) => d.apply(p, b),
-                None => b,
+                Some(d) if kept => d.apply(p, b),
+                _ => b,
             });
+            self.cropped.truncate(len + usize::from(kept));
         }
         if rule == PlaneRule::Percentile {
             self.clutter.retain_dense(
