@@ -90,24 +90,29 @@ fn a_set_override_reaches_every_run_and_its_replay_line() {
 }
 
 #[test]
-fn soak_overrides_outside_the_navigator_or_out_of_range_are_refused_before_any_run() {
-    for (set, says) in
-        [("field.length_m=3", "only navigator keys"), ("detector.shear_window_m=-1", "shear_window_m")]
-    {
-        let out = std::env::temp_dir().join(format!("croprow-soak-cli-refused-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&out);
-        let run = Command::new(env!("CARGO_BIN_EXE_croprow"))
-            .args(["evaluate", "--suite", "soak", "--runs", "1", "--set", set, "--out"])
-            .arg(&out)
-            .output()
-            .expect("runs");
-        assert!(!run.status.success(), "{set} accepted");
-        assert!(
-            String::from_utf8_lossy(&run.stderr).contains(says),
-            "{set}: {}",
-            String::from_utf8_lossy(&run.stderr)
-        );
-        assert!(!out.join("soak.json").exists(), "{set}: runs were driven");
-        let _ = std::fs::remove_dir_all(&out);
+fn overrides_outside_the_navigator_or_out_of_range_are_refused_before_any_run() {
+    let refused = [
+        ("field.length_m=3", "only navigator keys"),
+        ("detector.shear_window_m=-1", "shear_window_m"),
+        ("detector.register_z=0", "register_z"),
+    ];
+    for suite in ["soak", "paper"] {
+        for (set, says) in refused {
+            let out =
+                std::env::temp_dir().join(format!("croprow-cli-refused-{suite}-{}", std::process::id()));
+            let _ = std::fs::remove_dir_all(&out);
+            let run = Command::new(env!("CARGO_BIN_EXE_croprow"))
+                .args(["evaluate", "--suite", suite, "--runs", "1", "--set", set, "--out"])
+                .arg(&out)
+                .output()
+                .expect("runs");
+            let stderr = String::from_utf8_lossy(&run.stderr);
+            assert!(!run.status.success(), "{suite}: {set} accepted");
+            assert!(stderr.contains(says), "{suite}: {set}: {stderr}");
+            for written in ["soak.json", "table.json"] {
+                assert!(!out.join(written).exists(), "{suite}: {set}: runs were driven");
+            }
+            let _ = std::fs::remove_dir_all(&out);
+        }
     }
 }

@@ -52,3 +52,16 @@ fn a_lattice_narrowed_by_a_missing_sector_is_not_followed() {
     let outcome = provoke_then_guard(&unguarded, &guarded);
     assert!(outcome.end.starts_with("stopped"), "{outcome:?}");
 }
+
+#[test]
+fn a_wheel_slide_under_a_closed_canopy_is_registered_out_of_the_lane() {
+    // Grown corn, wet soil over x = 1.8-7.1 m: 32 % slip and a 0.05 m/s sideways drift the wheels and
+    // the gyro cannot sense. The lane map is carried by the odometry, so the fitted lane followed it
+    // and the robot ran over 35 plants with the default detector. Canopy registration (opt-in
+    // `register_enabled`) measures the drift from the canopy's lateral profile and drives it clean.
+    let unguarded = case(8, "grown corn 13.2 m");
+    let mut guarded = unguarded.clone();
+    guarded.navigator.detector.register_enabled = true;
+    let outcome = provoke_then_guard(&unguarded, &guarded);
+    assert_eq!(outcome.end.as_str(), "done", "{outcome:?}");
+}

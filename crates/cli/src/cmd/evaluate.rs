@@ -15,6 +15,10 @@
 //! (`{"fields": {"young-corn": {"detection", "detection_paper_mode", "following", "paper"}, ...}}`) and
 //! `DIR/table.md`.
 //!
+//! `--set KEY=VALUE` (navigator keys, repeatable) changes the navigator of every following run and, for
+//! `detector.*` keys, the default-mode detector of every detection run, so that an opt-in can be scored
+//! on Table I; the table's header lists the overrides.
+//!
 //! `--suite soak --runs N [--seed S]` runs the soak instead (issue 6): see [`super::soak`].
 
 use std::fmt::Write as _;
@@ -25,6 +29,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use anyhow::{Context, Result, bail};
 use croprow_core::DetectorConfig;
+use croprow_core::navigator::NavigatorConfig;
 use croprow_sim::Scenario;
 use croprow_sim::closed_loop::{self, RunConfig};
 use croprow_sim::experiment::detection::{ErrorSummary, run_detection};
@@ -65,8 +70,9 @@ pub struct Args {
     /// Soak: seed of the first run.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Soak: navigator override `KEY=VALUE` applied to every run (`detector.*`, `lane_switch.*`, ...;
-    /// values are TOML), e.g. `--set detector.shear_window_m=0` to soak with the slide test off. Repeatable.
+    /// Navigator override `KEY=VALUE` applied to every run (`detector.*`, `lane_switch.*`, ...; values
+    /// are TOML), e.g. `--set detector.shear_window_m=0` to run with the slide test off. In the paper
+    /// suite `detector.*` keys also change the default-mode detector of the detection runs. Repeatable.
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
 }
@@ -174,9 +180,11 @@ pub fn run(args: Args) -> Result<()> {
         "soak" => return super::soak::run(args.runs, args.seed, &args.set, &args.out),
         other => bail!("unknown suite `{other}` (known: paper, soak)"),
     }
-    if !args.set.is_empty() {
-        bail!("--set applies to `--suite soak` only (Table I runs the paper's settings)");
-    }
+    let navigator = super::simulate::navigator_with_sets(
+        &closed_loop::sim_navigator(),
+        &args.set,
+        "Table I runs its own fields",
+    )?;
     if args.seeds == 0 || args.seeds > 1000 {
         bail!("--seeds must be in 1..=1000");
     }
@@ -208,7 +216,8 @@ pub fn run(args: Args) -> Result<()> {
                 loop {
                     let i = next.fetch_add(1, Ordering::Relaxed);
                     let Some(job) = jobs.get(i) else { break };
-                    let outcome = run_job(*job, &scenarios, args.length_m).map_err(|e| format!("{e:#}"));
+                    let outcome =
+                        run_job(*job, &scenarios, &navigator, args.length_m).map_err(|e| format!("{e:#}"));
                     if let Ok(mut r) = results.lock()
                         && let Some(slot) = r.get_mut(i)
                     {
@@ -275,12 +284,12 @@ pub fn run(args: Args) -> Result<()> {
     Ok(())
 }
 
-fn run_job(job: Job, scenarios: &[Scenario], length_m: f64) -> Result<Outcome> {
+fn run_job(job: Job, scenarios: &[Scenario], navigator: &NavigatorConfig, length_m: f64) -> Result<Outcome> {
     match job {
         Job::Detection { field, seed } => {
             let mut s = scenarios.get(field).context("field")?.clone();
             s.seed = seed;
-            let modes = [DetectorConfig::default(), DetectorConfig::paper()];
+            let modes = [navigator.detector.clone(), DetectorConfig::paper()];
             let report = run_detection(&s, length_m, &modes, &mut |_| {})?;
             let [ours, paper] = report.modes.as_slice() else { bail!("expected two detector modes") };
             Ok(Outcome::Detection([
@@ -295,7 +304,7 @@ fn run_job(job: Job, scenarios: &[Scenario], length_m: f64) -> Result<Outcome> {
             s.seed = seed;
             s.field.length_m = s.field.length_m.min(s.start.x_m + length_m);
             let cfg = RunConfig { lanes: 1, ..RunConfig::default() };
-            let run = closed_loop::run(&s, closed_loop::sim_navigator(), cfg, |_| {})?;
+            let run = closed_loop::run(&s, navigator.clone(), cfg, |_| {})?;
             let m = &run.metrics;
             Ok(Outcome::Following(Pooled::of(
                 m.following_samples,
@@ -313,6 +322,9 @@ fn markdown(table: &Table, args: &Args) -> String {
         "# Table I, simulated fields: croprow vs the paper\n\n{} m of rows per run, {} seed(s) per field; mean ± std of the absolute error over every scored sample (the paper drove 200 m).\n",
         args.length_m, args.seeds
     );
+    if !args.set.is_empty() {
+        let _ = writeln!(s, "Navigator overrides: `{}`.\n", args.set.join("`, `"));
+    }
     let _ = writeln!(
         s,
         "| field | detection dist (cm) | detection angle (°) | paper-mode dist (cm) | paper-mode angle (°) | following (cm) | paper: dist (cm) | paper: angle (°) | paper: following (cm) |"

@@ -68,6 +68,30 @@ pub(crate) fn is_navigator_key(key: &str) -> bool {
     key.split_once('.').is_some_and(|(section, _)| NAV_SECTIONS.contains(&section))
 }
 
+/// `navigator` with the navigator overrides `sets` (`KEY=VALUE`, values TOML) applied, validated. A
+/// key outside the navigator is refused, the message saying why (`only_navigator`: "the soak draws
+/// its own fields").
+pub(crate) fn navigator_with_sets(
+    navigator: &NavigatorConfig,
+    sets: &[String],
+    only_navigator: &str,
+) -> Result<NavigatorConfig> {
+    let mut navigator = navigator.clone();
+    for item in sets {
+        let (key, text) = overrides::split_assignment(item).with_context(|| format!("--set {item}"))?;
+        if !is_navigator_key(key) {
+            bail!(
+                "--set {item}: {only_navigator}; only navigator keys ({}) can be set",
+                NAV_SECTIONS.join(", ")
+            );
+        }
+        navigator = overrides::set(&navigator, key, overrides::parse_literal(text))
+            .with_context(|| format!("--set {item}"))?;
+    }
+    navigator.validate().context("the navigator with the --set overrides")?;
+    Ok(navigator)
+}
+
 impl Setup {
     /// Loads a built-in scenario or a TOML file, applies the seed and the overrides.
     pub fn load(scenario: &str, seed: Option<u64>, sets: &[String]) -> Result<Self> {

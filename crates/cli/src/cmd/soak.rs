@@ -223,19 +223,15 @@ pub fn run(runs: u32, seed: u64, sets: &[String], out: &Path) -> Result<()> {
 /// The soak case of `seed` with the navigator overrides `sets` applied and added to its replay line.
 fn case_of(seed: u64, sets: &[String]) -> Result<Case> {
     let mut case = soak_case(seed);
+    case.navigator = super::simulate::navigator_with_sets(
+        &case.navigator,
+        sets,
+        "the soak draws its own fields and runs",
+    )?;
     for item in sets {
         let (key, text) = overrides::split_assignment(item).with_context(|| format!("--set {item}"))?;
-        if !super::simulate::is_navigator_key(key) {
-            bail!(
-                "--set {item}: the soak draws its own fields and runs; only navigator keys ({}) can be set",
-                super::simulate::NAV_SECTIONS.join(", ")
-            );
-        }
-        case.navigator = overrides::set(&case.navigator, key, overrides::parse_literal(text))
-            .with_context(|| format!("--set {item}"))?;
         case.overrides.push(format!("{key}={text}"));
     }
-    case.navigator.validate().context("the navigator with the --set overrides")?;
     Ok(case)
 }
 

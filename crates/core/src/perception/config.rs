@@ -237,6 +237,21 @@ pub struct DetectorConfig {
     /// Duration of one sweep, s; the scan is stamped at its end. Default 0.1 (a VLP-16 at 10 Hz).
     /// Range [0.01, 1].
     pub deskew_period_s: f64,
+    /// Register each keyframe's canopy against the last one's to measure the sideways drift of the
+    /// odometry that wheels and gyro cannot sense (a slide), and carry the lane map in `odom` corrected
+    /// by it (see `perception::register`). Default false (opt-in until a soak measures it).
+    pub register_enabled: bool,
+    /// Keyframes (one per 0.15 m driven) whose drift increments are summed for the significance test.
+    /// Default 6 (0.9 m). Range [2, 60].
+    pub register_window: usize,
+    /// Least standard deviation of one keyframe's drift increment taken for the test, m: the test uses
+    /// the noise the increments show (half the mean squared difference of successive ones, over about
+    /// 3 m), never less than this. Default 0.003 (measured on the simulated fields: 2-5 mm a keyframe
+    /// with the skew undone). Range [0.0005, 0.1].
+    pub register_noise_m: f64,
+    /// Standard errors from zero at which the window's summed drift is applied. Default 3. Range
+    /// [0.5, 20].
+    pub register_z: f64,
 }
 
 impl Default for DetectorConfig {
@@ -296,6 +311,10 @@ impl Default for DetectorConfig {
             deskew: false,
             deskew_sweep_start_deg: 180.0,
             deskew_period_s: 0.1,
+            register_enabled: false,
+            register_window: 6,
+            register_noise_m: 0.003,
+            register_z: 3.0,
         }
     }
 }
@@ -378,6 +397,9 @@ impl DetectorConfig {
         check_range("detector.clutter_min_share", self.clutter_min_share, 0.0, 1.0)?;
         check_range("detector.deskew_sweep_start_deg", self.deskew_sweep_start_deg, -360.0, 360.0)?;
         check_range("detector.deskew_period_s", self.deskew_period_s, 0.01, 1.0)?;
+        check_count("detector.register_window", self.register_window, 2, 60)?;
+        check_range("detector.register_noise_m", self.register_noise_m, 0.0005, 0.1)?;
+        check_range("detector.register_z", self.register_z, 0.5, 20.0)?;
         Ok(())
     }
 }

@@ -38,7 +38,13 @@ impl Deskew {
     /// deskew off, twist unknown or non-finite (that scan is then used as stamped, documented on
     /// [`super::Scan::twist`]), or the robot standing still.
     pub(crate) fn new(twist: Option<Twist2>, config: &DetectorConfig) -> Option<Self> {
-        let t = twist.filter(|t| config.deskew && t.is_finite() && (t.v != 0.0 || t.omega != 0.0))?;
+        Self::of_twist(twist.filter(|_| config.deskew), config)
+    }
+
+    /// As [`Deskew::new`], whether or not the detector deskews its points (canopy registration undoes
+    /// the skew of the returns it registers either way: see `perception::register`).
+    pub(crate) fn of_twist(twist: Option<Twist2>, config: &DetectorConfig) -> Option<Self> {
+        let t = twist.filter(|t| t.is_finite() && (t.v != 0.0 || t.omega != 0.0))?;
         Some(Self {
             v_mps: t.v as f32,
             omega_rps: t.omega as f32,

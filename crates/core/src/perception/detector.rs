@@ -17,6 +17,7 @@ use super::lanes::Lanes;
 use super::map::CentroidMap;
 use super::paper::Paper;
 use super::preprocess::{PlaneRule, Preprocessor};
+use super::register::Register;
 use super::{Detection, RowEstimate, RowStatus, Scan, Tilt};
 
 /// Points of a full VLP-16 revolution (16 rings × 1800 azimuths): the preprocessing buffers start at
@@ -29,6 +30,8 @@ const JUMP_SLACK_RAD: f64 = 0.1;
 const MAX_YAW_RATE_RPS: f64 = 3.0;
 /// Support (full-weight centroids) at which a default-mode row reaches confidence 1.
 const FULL_SUPPORT: f64 = 10.0;
+/// Distance driven in a lane before its canopy is registered (see `perception::register`), m.
+const REGISTER_MIN_LANE_M: f64 = 1.0;
 /// Confidence of a row that has no support of its own and is placed by its neighbours and the spacing.
 const INFERRED_CONFIDENCE: f64 = 0.25;
 
@@ -54,6 +57,8 @@ pub struct RowDetector {
     map: CentroidMap,
     paper: Paper,
     lanes: Lanes,
+    /// Canopy registration (`register_enabled`): the lanes run in its `nav` frame.
+    register: Register,
     centroids: Vec<[f64; 2]>,
     last: Option<(f64, Pose2)>,
     /// A pose that jumped away from `last`: accepted as the new odometry origin if the next scan agrees.
@@ -73,6 +78,7 @@ impl RowDetector {
             map: CentroidMap::new(config.map_capacity),
             paper: Paper::new(&config),
             lanes: Lanes::new(&config),
+            register: Register::new(),
             centroids: Vec::with_capacity(config.map_capacity),
             last: None,
             pending_jump: None,
@@ -120,7 +126,12 @@ impl RowDetector {
         self.pending_jump = None;
         match self.config.mode {
             DetectorMode::Paper => self.detect_paper(t, &odom, mount),
-            DetectorMode::Default => self.detect_default(t, &odom),
+            DetectorMode::Default => {
+                // The returns are already deskewed when the detector deskews; otherwise registration
+                // undoes the skew of the returns it registers.
+                let skew = if self.config.deskew { None } else { Deskew::of_twist(scan.twist, &self.config) };
+                self.detect_default(t, &odom, skew, mount)
+            }
         }
     }
 
@@ -213,11 +224,20 @@ impl RowDetector {
         }
     }
 
-    fn detect_default(&mut self, t: f64, odom: &Pose2) -> Detection {
+    fn detect_default(&mut self, t: f64, odom: &Pose2, skew: Option<Deskew>, mount: &Mount) -> Detection {
+        let nav = if self.config.register_enabled {
+            // Registered only against a lane that has held for a while: a fresh one may be a lattice
+            // that is not the crop's, and its frame jumps.
+            let direction =
+                self.lanes.row_direction().filter(|_| self.lanes.tracked_for_m() >= REGISTER_MIN_LANE_M);
+            self.register.step(&self.pre.cropped, odom, direction, skew.map(|d| (d, mount)), &self.config)
+        } else {
+            *odom
+        };
         let out = self.lanes.step(
             &self.pre.canopy,
             &self.pre.cropped,
-            odom,
+            &nav,
             t,
             &self.config,
             &mut self.map,
@@ -254,6 +274,7 @@ impl RowDetector {
     fn forget_rows(&mut self) {
         self.map.clear();
         self.lanes.reset();
+        self.register.reset();
         self.centroids.clear();
         self.sparse_scans = 0;
     }
@@ -288,6 +309,11 @@ impl RowDetector {
     /// positive when the robot slides to its left (`base_link` y) unseen by the odometry; `None` when
     /// it found none (or in the paper mode). See `perception::lanes`, the slide test.
     pub fn slide_per_m(&self) -> Option<f64> {
+        if self.config.register_enabled
+            && let Some(k) = self.register.drift().slide_per_m
+        {
+            return Some(k);
+        }
         self.lanes.slide_per_m()
     }
 }

@@ -497,6 +497,17 @@ impl Lanes {
         self.store_centroids(&predicted, odom, config, map)
     }
 
+    /// Direction of the tracked rows in the frame of the poses given to [`Lanes::step`], rad, when a lane
+    /// is tracked.
+    pub(crate) fn row_direction(&self) -> Option<f64> {
+        self.model.map(|(lane, pose)| pose.yaw + lane.a.atan())
+    }
+
+    /// Distance driven since the tracked lane was found, m (0 without a lane).
+    pub(crate) fn tracked_for_m(&self) -> f64 {
+        if self.model.is_some() { self.odometer_m - self.lane_since_m } else { 0.0 }
+    }
+
     /// The slide the slide test found at the last correction, m per metre driven, `base_link` y
     /// (positive: the robot slides left, so its map moves left too); see [`Lanes::observe_slide`].
     pub(crate) fn slide_per_m(&self) -> Option<f64> {

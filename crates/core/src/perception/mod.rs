@@ -33,6 +33,7 @@ mod level;
 mod map;
 mod paper;
 mod preprocess;
+mod register;
 mod rng;
 
 pub use config::{DetectorConfig, DetectorMode};

@@ -1,0 +1,474 @@
+//! Canopy registration (default mode, opt-in: `detector.register_enabled`): the sideways drift of the
+//! odometry that the wheels and the gyro cannot sense, measured from the canopy itself.
+//!
+//! It sits between preprocessing and the lane pipeline ([`super::lanes`]). The lane pipeline keeps its
+//! map of row centroids in `odom`, carried by the odometry, and a tilted LiDAR never sees the rows under
+//! the robot: there the fit rests on centroids stored 1.5-4.5 m of driving ago. A slide the odometry
+//! does not sense (wet soil on a side slope) moves the robot but not those centroids, so the fitted rows
+//! at the robot follow the odometry, not the crop: a slide of 0.05 m per metre driven put the lane
+//! 15 cm off in grown corn while the rows in view were within 3 cm (`examples/slide_response.rs` in the
+//! simulator crate). The gated centroids cannot tell: they are measured in gates around the prediction,
+//! and over a closed canopy a windowed centroid follows its window.
+//!
+//! Registration measures the drift without any gate: every [`KEYFRAME_M`] of driving, the canopy's
+//! lateral profile (height-squared weight per 5 mm across the rows, in nine bands of 0.25 m along
+//! them, smoothed)
+//! is cross-correlated with the profile of the previous keyframe over the stretch both see, in that
+//! keyframe's row frame. The lag of the peak is how far this scan's canopy sits beside where the
+//! odometry puts it: the odometry's sideways drift since the keyframe. With the true odometry the
+//! increments scatter about zero (sd 2-5 mm per keyframe on the simulated fields, no bias); under a
+//! slide they lean to one side by the slide times the keyframe distance (a little less: the sensor sees
+//! the plants from where it truly is, so their visible flanks move less than the plants).
+//!
+//! Only significant drift is applied: the increments of the last `register_window` keyframes are
+//! summed, and when the sum lies more than `register_z` standard errors from zero (the per-keyframe noise
+//! is `register_noise_m`) every increment of the window not yet applied moves the correction at once.
+//! Increments that leave the window unapplied were noise and are dropped, so the fault-free odometry is
+//! left as it is. The correction is a translation of `odom` (the `nav` frame of the lane pipeline:
+//! `nav = odom + correction`), across the rows; it never rotates it.
+
+use std::collections::VecDeque;
+
+use crate::geometry::{Mount, Point3, Pose2};
+
+use super::config::DetectorConfig;
+use super::deskew::Deskew;
+
+/// Driving between two keyframes, m (the lane map's keyframe distance).
+pub(crate) const KEYFRAME_M: f64 = 0.15;
+/// Largest change of the row direction between two keyframes for a comparison, rad: past it the view
+/// has swung (a turn), not drifted.
+const MAX_TURN_RAD: f64 = 0.05;
+/// Lateral bin of the profiles, m, and their half-width across the rows, m.
+const BIN_M: f64 = 0.005;
+const HALF_WIDTH_M: f64 = 2.5;
+const BINS: usize = (2.0 * HALF_WIDTH_M / BIN_M) as usize;
+/// Half-width of the triangular smoothing kernel, bins (1.5 cm: a row's crest is 5-20 cm wide).
+const SMOOTH_BINS: usize = 3;
+/// The bands along the rows, m ahead of the keyframe's `base_link`: the stretch every keyframe and the
+/// next one both see (the view starts about 1.5 m ahead and ends near 4 m), cut in bands so that a
+/// band the next scan does not see well (a gap, a missing sector) drops out alone.
+const BAND_START_M: f64 = 1.9;
+const BAND_M: f64 = 0.25;
+const NBANDS: usize = 9;
+/// Largest increment taken for drift, m: a slide of 0.25 m per metre over a 0.2 m keyframe.
+const MAX_INCREMENT_M: f64 = 0.05;
+/// Weight of a new increment in the running noise estimate (a memory of about 20 keyframes, 3 m).
+const NOISE_GAIN: f64 = 0.05;
+/// Lags searched, bins either side: 6 cm, the drift of 0.4 m per metre over a keyframe; and in the
+/// refining pass, 1.5 cm.
+const MAX_LAG_BINS: i64 = 12;
+const REFINE_LAG_BINS: i64 = 3;
+/// Lowest return registered, m above the canopy plane: the ground and stubble between the rows
+/// carry no lateral structure.
+const MIN_HEIGHT_M: f32 = 0.08;
+/// Least summed height-squared weight of a band's profile in both scans for it to be compared, m²:
+/// about 50 canopy returns 0.3 m high.
+const MIN_BAND_WEIGHT_M2: f64 = 1.0;
+/// Least normalised correlation at the peak for a band's lag to count: a profile that does not look
+/// like the last one (the canopy ended, a sector of the scan is missing) tells nothing.
+const MIN_CORRELATION: f64 = 0.5;
+
+/// One keyframe: where it was (the `nav` pose and the row direction there) and its bands' weights;
+/// its profiles live in [`Register::key_profiles`].
+#[derive(Debug, Clone, Copy)]
+struct Keyframe {
+    pose: Pose2,
+    direction: f64,
+    weights: [f64; NBANDS],
+}
+
+/// What registration did at the last scan, for diagnostics.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub(crate) struct Drift {
+    /// The correction `nav - odom`, m in `odom`.
+    pub(crate) correction: [f64; 2],
+    /// The increment measured at the last keyframe, m across the rows (positive: the robot is further
+    /// left than the odometry says), if one was measured.
+    pub(crate) last_increment_m: Option<f64>,
+    /// The drift the window holds per metre driven, m/m (positive: the robot slides to its left unseen
+    /// by the odometry), while it is significant.
+    pub(crate) slide_per_m: Option<f64>,
+}
+
+/// The registration stage: the last keyframe, the window of increments and the correction. Its
+/// profile buffers (150 KB) are allocated at its first keyframe, so a detector that does not register
+/// does not carry them.
+#[derive(Debug, Clone)]
+pub(crate) struct Register {
+    key: Option<Keyframe>,
+    key_profiles: Vec<Vec<f64>>,
+    scratch: Vec<Vec<f64>>,
+    smoothed: Vec<f64>,
+    /// The scan's returns to register, `(x, y, h²)` in `base_link` (see [`Register::gather`]).
+    points: Vec<[f64; 3]>,
+    /// Increments of the last keyframes, m across the rows, the distance driven since the keyframe
+    /// before each, m, and whether each has been applied.
+    window: VecDeque<(f64, f64, bool)>,
+    /// Running mean of half the squared difference of successive increments, m²: their noise, blind to
+    /// a steady drift (which moves every increment alike).
+    noise2: Option<f64>,
+    drift: Drift,
+}
+
+impl Register {
+    pub(crate) fn new() -> Self {
+        Self {
+            key: None,
+            key_profiles: Vec::new(),
+            scratch: Vec::new(),
+            smoothed: Vec::new(),
+            points: Vec::new(),
+            window: VecDeque::with_capacity(64),
+            noise2: None,
+            drift: Drift::default(),
+        }
+    }
+
+    /// Forgets the keyframe and the window (a new lane): the correction is kept, so `nav` stays
+    /// continuous.
+    pub(crate) fn reset(&mut self) {
+        self.key = None;
+        self.window.clear();
+        self.drift.slide_per_m = None;
+    }
+
+    /// The pose of `base_link` in `nav` for odometry pose `odom`.
+    pub(crate) fn nav(&self, odom: &Pose2) -> Pose2 {
+        let [dx, dy] = self.drift.correction;
+        Pose2::new(odom.x + dx, odom.y + dy, odom.yaw)
+    }
+
+    pub(crate) fn drift(&self) -> Drift {
+        self.drift
+    }
+
+    /// One scan: `canopy` points `(x, y, h)` in `base_link`, the odometry pose, the direction of the
+    /// tracked rows in `nav` (none: no lane, nothing to register against), and the scan's motion skew
+    /// with the sensor mount when the points still carry it. Returns the `nav` pose.
+    pub(crate) fn step(
+        &mut self,
+        canopy: &[[f32; 3]],
+        odom: &Pose2,
+        direction: Option<f64>,
+        skew: Option<(Deskew, &Mount)>,
+        config: &DetectorConfig,
+    ) -> Pose2 {
+        let nav = self.nav(odom);
+        let Some(direction) = direction.filter(|d| d.is_finite()) else {
+            self.reset();
+            return nav;
+        };
+        let due = self.key.as_ref().is_none_or(|k| (nav.x - k.pose.x).hypot(nav.y - k.pose.y) >= KEYFRAME_M);
+        if !due {
+            return nav;
+        }
+        self.drift.last_increment_m = None;
+        self.gather(canopy, skew);
+        let turned = self
+            .key
+            .as_ref()
+            .is_some_and(|k| crate::geometry::wrap_angle(direction - k.direction).abs() > MAX_TURN_RAD);
+        if let Some(key) = self.key.take().filter(|_| !turned) {
+            let weights = self.fill(&nav, &key.pose, key.direction, 0.0);
+            // A second pass on the residual, with the profile moved by the first estimate: one pass
+            // reads a drift 10-20 % short (the parabola through a broad correlation peak), two within
+            // 1-4 % (measured on the simulated fields, 15 mm increments).
+            let refined = self.compare(&key, weights, MAX_LAG_BINS).and_then(|first| {
+                let weights = self.fill(&nav, &key.pose, key.direction, first);
+                self.compare(&key, weights, REFINE_LAG_BINS).map(|rest| first + rest)
+            });
+            // A drift of more than the largest plausible slide over one keyframe is a view that changed
+            // (a lane hypothesis that jumped, the canopy ending), not drift: it also empties the window.
+            let refined = refined.filter(|s| s.abs() <= MAX_INCREMENT_M);
+            if refined.is_none() {
+                self.window.clear();
+                self.drift.slide_per_m = None;
+            }
+            if let Some(shift) = refined {
+                // The canopy sits `shift` to the left of where the odometry puts it: the robot is that
+                // much further right than the odometry says.
+                let driven = (nav.x - key.pose.x).hypot(nav.y - key.pose.y);
+                self.push(-shift, driven, key.direction, config);
+            }
+        }
+        let nav = self.nav(odom);
+        let weights = self.fill(&nav, &nav, direction, 0.0);
+        std::mem::swap(&mut self.key_profiles, &mut self.scratch);
+        self.key = Some(Keyframe { pose: nav, direction, weights });
+        nav
+    }
+
+    /// Keeps the canopy returns high enough to register, `(x, y, h²)` in `base_link` at the scan's
+    /// stamp: the three profiles of a keyframe are filled from them.
+    fn gather(&mut self, canopy: &[[f32; 3]], skew: Option<(Deskew, &Mount)>) {
+        self.points.clear();
+        let mount_yaw = skew.as_ref().map_or((0.0, 1.0), |(_, mount)| (mount.yaw_rad as f32).sin_cos());
+        for q in canopy {
+            // While the robot turns, the returns of a sweep are placed as if all fired at its stamp:
+            // the view swings by ω·τ, 3 cm at 3 m while turning at 0.2 rad/s, which reads as drift
+            // (measured: 10 mm increments instead of 5 on young soybean while following). Each
+            // return's firing time comes from its bearing about the sensor (the bearing in the sensor
+            // frame differs by a few degrees under its pitch: under a millisecond of the sweep).
+            let q = match &skew {
+                Some((d, mount)) => {
+                    let (bx, by) = (q[0] - mount.x_m as f32, q[1] - mount.y_m as f32);
+                    let (sy, cy) = mount_yaw;
+                    d.apply(&Point3::new(cy * bx + sy * by, cy * by - sy * bx, 0.0), *q)
+                }
+                None => *q,
+            };
+            if q[2] >= MIN_HEIGHT_M {
+                self.points.push([q[0] as f64, q[1] as f64, (q[2] as f64).powi(2)]);
+            }
+        }
+    }
+
+    /// Fills the scratch profiles with the gathered returns (in the `base_link` of `nav`) in the row
+    /// frame at `frame` with rows along `direction`; returns each band's summed weight.
+    fn fill(&mut self, nav: &Pose2, frame: &Pose2, direction: f64, v_shift_m: f64) -> [f64; NBANDS] {
+        let mut weights = [0.0; NBANDS];
+        self.scratch.resize_with(NBANDS, Vec::new);
+        self.smoothed.resize(BINS, 0.0);
+        for p in &mut self.scratch {
+            p.resize(BINS, 0.0);
+            p.iter_mut().for_each(|v| *v = 0.0);
+        }
+        let (s, c) = direction.sin_cos();
+        let (ns, nc) = nav.yaw.sin_cos();
+        for &[x, y, w] in &self.points {
+            let (ox, oy) = (nav.x + nc * x - ns * y, nav.y + ns * x + nc * y);
+            let (dx, dy) = (ox - frame.x, oy - frame.y);
+            let (u, v) = (c * dx + s * dy, -s * dx + c * dy - v_shift_m);
+            let b = (u - BAND_START_M) / BAND_M;
+            if !(b >= 0.0 && b < NBANDS as f64) {
+                continue;
+            }
+            let band = b as usize;
+            let i = (v + HALF_WIDTH_M) / BIN_M;
+            if i >= 0.0 && i < BINS as f64 {
+                self.scratch[band][i as usize] += w;
+                weights[band] += w;
+            }
+        }
+        for band in 0..NBANDS {
+            smooth(&self.scratch[band], &mut self.smoothed);
+            std::mem::swap(&mut self.scratch[band], &mut self.smoothed);
+        }
+        weights
+    }
+
+    /// The lateral shift of the scratch profiles against the keyframe's, m (positive: this scan's canopy
+    /// lies to the left of the keyframe's), the mean over the bands that can be compared.
+    fn compare(&self, key: &Keyframe, weights: [f64; NBANDS], max_lag: i64) -> Option<f64> {
+        let (mut sum, mut n) = (0.0, 0.0);
+        let bands = weights.iter().zip(&key.weights).zip(self.key_profiles.iter().zip(&self.scratch));
+        for ((&weight, &key_weight), (key_profile, profile)) in bands {
+            if weight < MIN_BAND_WEIGHT_M2 || key_weight < MIN_BAND_WEIGHT_M2 {
+                continue;
+            }
+            if let Some((lag, r)) = peak_lag(key_profile, profile, max_lag) {
+                sum += r * lag * BIN_M;
+                n += r;
+            }
+        }
+        (n > 0.0).then(|| sum / n)
+    }
+
+    /// Adds an increment (m along the left normal of rows running along `direction`) to the window and
+    /// applies the window's unapplied increments when their sum is significant.
+    fn push(&mut self, increment: f64, driven_m: f64, direction: f64, config: &DetectorConfig) {
+        if let Some(&(last, _, _)) = self.window.back() {
+            let d2 = 0.5 * (increment - last).powi(2);
+            self.noise2 = Some(self.noise2.map_or(d2, |n| n + NOISE_GAIN * (d2 - n)));
+        }
+        self.drift.last_increment_m = Some(increment);
+        self.window.push_back((increment, driven_m, false));
+        while self.window.len() > config.register_window {
+            self.window.pop_front();
+        }
+        let n = self.window.len();
+        let (total, driven) = self.window.iter().fold((0.0, 0.0), |(t, d), e| (t + e.0, d + e.1));
+        let sigma = self.noise2.map_or(config.register_noise_m, |n| n.sqrt().max(config.register_noise_m));
+        if n < 2 || total.abs() <= config.register_z * sigma * (n as f64).sqrt() {
+            self.drift.slide_per_m = None;
+            return;
+        }
+        self.drift.slide_per_m = (driven > 0.0).then(|| total / driven);
+        let unapplied: f64 = self
+            .window
+            .iter_mut()
+            .filter(|e| !e.2)
+            .map(|e| {
+                e.2 = true;
+                e.0
+            })
+            .sum();
+        let (s, c) = direction.sin_cos();
+        self.drift.correction[0] -= s * unapplied;
+        self.drift.correction[1] += c * unapplied;
+    }
+}
+
+/// `out` = `profile` smoothed with a triangular kernel of half-width [`SMOOTH_BINS`], the terms past
+/// the profile's ends left out. Written tap by tap over the whole profile (each bin still sums its
+/// taps in order), so that the compiler can vectorise it.
+fn smooth(profile: &[f64], out: &mut [f64]) {
+    let n = profile.len().min(out.len());
+    let (profile, out) = (&profile[..n], &mut out[..n]);
+    out.iter_mut().for_each(|o| *o = 0.0);
+    let k = SMOOTH_BINS;
+    for tap in 0..=2 * k {
+        let weight = (k + 1).abs_diff(tap.abs_diff(k)) as f64;
+        // Bin i takes profile[i + tap - k], for the bins where that lies in the profile.
+        let (first_out, first_in) = if tap < k { (k - tap, 0) } else { (0, tap - k) };
+        let len = n.saturating_sub(first_out.max(first_in));
+        for (o, &v) in out[first_out..first_out + len].iter_mut().zip(&profile[first_in..first_in + len]) {
+            *o += weight * v;
+        }
+    }
+}
+
+/// Profiles [`peak_lag`] can compare: at most [`BINS`] bins, at most 31 lags either side.
+const MAX_PROFILE: usize = BINS;
+const MAX_LAGS: usize = 63;
+
+/// The lag (bins, sub-bin by a parabola through the peak) at which `b` best matches `a`, both demeaned,
+/// within `±max_lag`; `None` at the edge of the search, when the match is poor, or for profiles
+/// longer than [`MAX_PROFILE`].
+fn peak_lag(a: &[f64], b: &[f64], max_lag: i64) -> Option<(f64, f64)> {
+    let n = a.len().min(b.len());
+    let lags = usize::try_from(2 * max_lag + 1).ok().filter(|&l| l <= MAX_LAGS)?;
+    let half = lags / 2;
+    if n > MAX_PROFILE || n == 0 {
+        return None;
+    }
+    let (a, b) = (&a[..n], &b[..n]);
+    let ma = a.iter().sum::<f64>() / n as f64;
+    let mb = b.iter().sum::<f64>() / n as f64;
+    // `b` demeaned and padded with `half` zeros at each end: every lag then runs over all of `a`, the
+    // terms past `b`'s ends adding zero, and the lags accumulate side by side (each in the order of
+    // `a`), which the compiler vectorises.
+    let mut padded = [0.0f64; MAX_PROFILE + MAX_LAGS];
+    for (p, &v) in padded[half..half + n].iter_mut().zip(b) {
+        *p = v - mb;
+    }
+    let mut cc = [0.0f64; MAX_LAGS];
+    let cc = &mut cc[..lags];
+    for (i, &va) in a.iter().enumerate() {
+        let da = va - ma;
+        for (slot, &db) in cc.iter_mut().zip(&padded[i..i + lags]) {
+            *slot += da * db;
+        }
+    }
+    let (best, &peak) = cc.iter().enumerate().max_by(|x, y| x.1.total_cmp(y.1))?;
+    if best == 0 || best + 1 == lags {
+        return None;
+    }
+    let energy = |p: &[f64], m: f64| p.iter().map(|v| (v - m) * (v - m)).sum::<f64>();
+    let norm = (energy(a, ma) * energy(b, mb)).sqrt();
+    // (`norm` is 0 for a flat profile and NaN never: the profiles are sums of finite weights.)
+    if norm <= 0.0 || peak / norm < MIN_CORRELATION {
+        return None;
+    }
+    let (ym, yp) = (cc[best - 1], cc[best + 1]);
+    let den = ym - 2.0 * peak + yp;
+    let sub = if den < 0.0 { 0.5 * (ym - yp) / den } else { 0.0 };
+    Some((best as f64 - half as f64 + sub, peak / norm))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Canopy returns `(x, y, h)` in the `base_link` of a robot truly at `truth` (field frame), over
+    /// straight rows along the field's x, 0.75 m apart with the robot's lane centre at y = 0: a grid of
+    /// returns every 2 cm from 1.5 to 4.2 m ahead, each as high as the canopy there (a crest 0.4 m high
+    /// over each row, 0.15 m wide, and plants every 0.2 m along it).
+    fn canopy(truth: &Pose2) -> Vec<[f32; 3]> {
+        let mut out = Vec::new();
+        for i in 0..135 {
+            for k in 0..250 {
+                // Each line of returns is offset by a golden-ratio share of the grid, as a sweep's
+                // returns are not aligned from ring to ring: aligned, the profile is a 2 cm comb.
+                let offset = 0.02 * (0.618_034 * i as f64).fract();
+                let (x, y) = (1.5 + 0.02 * i as f64, -2.5 + 0.02 * k as f64 + offset);
+                let (fx, fy) = truth.transform_point(x, y);
+                let across = (fy / 0.75 - 0.5 - (fy / 0.75 - 0.5).round()) * 0.75;
+                let along = ((fx / 0.2).fract() - 0.5).abs();
+                let h = 0.4 * (-(across / 0.15).powi(2)).exp() * (1.0 - 0.3 * along);
+                if h > 0.05 {
+                    out.push([x as f32, y as f32, h as f32]);
+                }
+            }
+        }
+        out
+    }
+
+    /// Drives 6 m down the lane centre in 5 cm steps, the odometry drifting sideways by `slide` m per
+    /// metre from 1 m on; returns the largest error of the `nav` pose across the rows after `settle_m`
+    /// and the correction at the end.
+    fn drive(slide: f64, settle_m: f64) -> (f64, [f64; 2]) {
+        let config = DetectorConfig { register_enabled: true, ..DetectorConfig::default() };
+        let mut register = Register::new();
+        let mut worst: f64 = 0.0;
+        for step in 0..120 {
+            let x = 0.05 * step as f64;
+            let truth = Pose2::new(x, 0.0, 0.0);
+            let odom = Pose2::new(x, slide * (x - 1.0).max(0.0), 0.0);
+            let nav = register.step(&canopy(&truth), &odom, Some(0.0), None, &config);
+            if x >= settle_m {
+                worst = worst.max(nav.y.abs());
+            }
+        }
+        (worst, register.drift().correction)
+    }
+
+    #[test]
+    fn true_odometry_is_left_as_it_is() {
+        let (worst, correction) = drive(0.0, 0.0);
+        assert_eq!(worst, 0.0);
+        assert_eq!(correction, [0.0, 0.0]);
+    }
+
+    #[test]
+    fn a_sideways_drift_is_taken_out_of_the_nav_pose() {
+        // 0.1 m per metre: 0.5 m of drift over the run. After the window has seen it (1 m), `nav` stays
+        // within 1 cm of the truth (a keyframe's 15 mm of drift is taken out when it is measured).
+        let (worst, correction) = drive(0.1, 2.0);
+        assert!(worst < 0.01, "nav off the truth by {worst} m");
+        assert!((correction[1] + 0.5).abs() < 0.03, "{correction:?}");
+    }
+
+    #[test]
+    fn a_drift_under_the_noise_is_not_applied() {
+        // 2 mm per metre: 0.3 mm per keyframe, far under the 3 sigma of the test.
+        let (_, correction) = drive(0.002, 0.0);
+        assert_eq!(correction, [0.0, 0.0]);
+    }
+
+    #[test]
+    fn a_turn_between_keyframes_compares_nothing() {
+        let config = DetectorConfig { register_enabled: true, ..DetectorConfig::default() };
+        let mut register = Register::new();
+        for step in 0..40 {
+            let x = 0.05 * step as f64;
+            let truth = Pose2::new(x, 0.0, 0.0);
+            // The odometry drifts by 5 cm a keyframe, but the rows' direction swings by 0.1 rad each
+            // keyframe: every comparison is refused.
+            let odom = Pose2::new(x, 0.3 * x, 0.0);
+            register.step(&canopy(&truth), &odom, Some(0.1 * (step / 3) as f64), None, &config);
+        }
+        assert_eq!(register.drift().correction, [0.0, 0.0]);
+    }
+
+    #[test]
+    fn peak_lag_finds_a_shift_between_bins() {
+        let a: Vec<f64> = (0..400).map(|i| (-((i as f64 - 200.0) / 12.0).powi(2)).exp()).collect();
+        let b: Vec<f64> = (0..400).map(|i| (-((i as f64 - 203.4) / 12.0).powi(2)).exp()).collect();
+        let (lag, r) = peak_lag(&a, &b, 12).expect("a peak");
+        assert!((lag - 3.4).abs() < 0.2, "{lag}");
+        assert!(r > 0.9, "{r}");
+        assert!(peak_lag(&a, &b, 2).is_none(), "a peak at the edge of the search is no peak");
+    }
+}
