@@ -9,7 +9,7 @@
 //! ```
 
 use crate::error::ConfigError;
-use crate::geometry::{Mount, Pose2, wrap_angle};
+use crate::geometry::{Mount, Pose2, Twist2, wrap_angle};
 
 use super::config::{DetectorConfig, DetectorMode};
 use super::deskew::Deskew;
@@ -126,12 +126,7 @@ impl RowDetector {
         self.pending_jump = None;
         match self.config.mode {
             DetectorMode::Paper => self.detect_paper(t, &odom, mount),
-            DetectorMode::Default => {
-                // The returns are already deskewed when the detector deskews; otherwise registration
-                // undoes the skew of the returns it registers.
-                let skew = if self.config.deskew { None } else { Deskew::of_twist(scan.twist, &self.config) };
-                self.detect_default(t, &odom, skew, mount)
-            }
+            DetectorMode::Default => self.detect_default(t, &odom, scan.twist, mount),
         }
     }
 
@@ -224,12 +219,15 @@ impl RowDetector {
         }
     }
 
-    fn detect_default(&mut self, t: f64, odom: &Pose2, skew: Option<Deskew>, mount: &Mount) -> Detection {
+    fn detect_default(&mut self, t: f64, odom: &Pose2, twist: Option<Twist2>, mount: &Mount) -> Detection {
         let nav = if self.config.register_enabled {
             // Registered only against a lane that has held for a while: a fresh one may be a lattice
             // that is not the crop's, and its frame jumps.
             let direction =
                 self.lanes.row_direction().filter(|_| self.lanes.tracked_for_m() >= REGISTER_MIN_LANE_M);
+            // The returns are already deskewed when the detector deskews; otherwise registration
+            // undoes the skew of the returns it registers.
+            let skew = Deskew::of_twist(twist.filter(|_| !self.config.deskew), &self.config);
             self.register.step(&self.pre.cropped, odom, direction, skew.map(|d| (d, mount)), &self.config)
         } else {
             *odom

@@ -1435,7 +1435,6 @@ fn circular_mean(hist: &[f64], period_m: f64) -> f64 {
     sn.atan2(c) * period_m / std::f64::consts::TAU
 }
 
-/// Histogram bin of lateral coordinate `u`, m, if inside.
 /// The bin `xi` (≥ 0) falls in, as `xi as usize` gives it up to 2⁶³, beyond every bin: `as i64` is one
 /// instruction where `as usize` is a dozen (x86 has no unsigned 64-bit conversion), and this runs for
 /// every cropped return.
@@ -1443,6 +1442,7 @@ fn bin_of(xi: f64) -> usize {
     xi as i64 as usize
 }
 
+/// Histogram bin of lateral coordinate `u`, m, if inside.
 fn hist_index(u: f64) -> Option<usize> {
     let i = ((u + HIST_HALF_M) / HIST_BIN_M).floor();
     (i >= 0.0 && i < HIST_BINS as f64).then_some(i as usize)

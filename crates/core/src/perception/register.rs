@@ -6,19 +6,20 @@
 //! the robot: there the fit rests on centroids stored 1.5-4.5 m of driving ago. A slide the odometry
 //! does not sense (wet soil on a side slope) moves the robot but not those centroids, so the fitted rows
 //! at the robot follow the odometry, not the crop: a slide of 0.05 m per metre driven put the lane
-//! 15 cm off in grown corn while the rows in view were within 3 cm (`examples/slide_response.rs` in the
-//! simulator crate). The gated centroids cannot tell: they are measured in gates around the prediction,
-//! and over a closed canopy a windowed centroid follows its window.
+//! 17 cm off in grown corn, 15 cm on average (`examples/slide_response.rs` in the simulator crate).
+//! The gated centroids cannot tell: they are measured in gates around the prediction, and over a
+//! closed canopy a windowed centroid follows its window.
 //!
 //! Registration measures the drift without any gate: every [`KEYFRAME_M`] of driving, the canopy's
 //! lateral profile (height-squared weight per 5 mm across the rows, in nine bands of 0.25 m along
-//! them, smoothed)
-//! is cross-correlated with the profile of the previous keyframe over the stretch both see, in that
-//! keyframe's row frame. The lag of the peak is how far this scan's canopy sits beside where the
+//! them, smoothed) is cross-correlated with the profile of the previous keyframe over the stretch
+//! both see, in that keyframe's row frame. The lag of the peak is how far this scan's canopy sits beside where the
 //! odometry puts it: the odometry's sideways drift since the keyframe. With the true odometry the
-//! increments scatter about zero (sd 2-5 mm per keyframe on the simulated fields, no bias); under a
-//! slide they lean to one side by the slide times the keyframe distance (a little less: the sensor sees
-//! the plants from where it truly is, so their visible flanks move less than the plants).
+//! increments scatter about zero (±1.5 mm on the unit tests' synthetic canopy, about ±1 cm on the
+//! weedy young soybean of soak seed 662, and leaning to one side where the canopy ends inside the
+//! bands: docs/faults.md). Under a slide they lean to one side by the slide times the keyframe
+//! distance (a little less: the sensor sees the plants from where it truly is, so their visible
+//! flanks move less than the plants).
 //!
 //! Only significant drift is applied: the increments of the last `register_window` keyframes are
 //! summed, and when the sum lies more than `register_z` standard errors from zero (the per-keyframe noise
@@ -83,9 +84,6 @@ struct Keyframe {
 pub(crate) struct Drift {
     /// The correction `nav - odom`, m in `odom`.
     pub(crate) correction: [f64; 2],
-    /// The increment measured at the last keyframe, m across the rows (positive: the robot is further
-    /// left than the odometry says), if one was measured.
-    pub(crate) last_increment_m: Option<f64>,
     /// The drift the window holds per metre driven, m/m (positive: the robot slides to its left unseen
     /// by the odometry), while it is significant.
     pub(crate) slide_per_m: Option<f64>,
@@ -163,7 +161,6 @@ impl Register {
         if !due {
             return nav;
         }
-        self.drift.last_increment_m = None;
         self.gather(canopy, skew);
         let turned = self
             .key
@@ -282,7 +279,6 @@ impl Register {
             let d2 = 0.5 * (increment - last).powi(2);
             self.noise2 = Some(self.noise2.map_or(d2, |n| n + NOISE_GAIN * (d2 - n)));
         }
-        self.drift.last_increment_m = Some(increment);
         self.window.push_back((increment, driven_m, false));
         while self.window.len() > config.register_window {
             self.window.pop_front();
