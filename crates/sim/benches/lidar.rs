@@ -219,6 +219,35 @@
 //!   primitives a packet tested, as the grid walk had): 64.8M, and a 2 s build;
 //! - 32 bins (with an index array for the leaves): 55.7M; the heuristic weighting boxes' top faces
 //!   twice (the rays come from above): 51.4M (-0.7 %).
+//!
+//! Packets of 16 rays (session 20): a laser's rays at 16 consecutive azimuths (3.2°) per packet
+//! instead of 8, leaves of 4-8 primitives instead of 2-4 (`LEAF_MIN` 4, `LEAF_MAX` 8, the heuristic's
+//! traversal cost 2 primitive tests instead of 1). Scan hashes of all five scenarios the same
+//! (`examples/raycast_cost.rs`, 100 revolutions). Instructions per revolution (callgrind, 3
+//! revolutions) before -> after: grown corn 17.01M -> 17.41M, young corn 11.27M -> 11.53M; CPU time per
+//! revolution (`raycast_cost` 200 revolutions, 4 runs alternating the binaries on an idle machine,
+//! ranges): grown corn 1.96-2.02 -> 1.62-1.72 ms, young corn 1.12-1.14 -> 0.94-1.04 ms, grown soybean
+//! 2.46-2.60 -> 2.00-2.14 ms; 5 more runs beside a soak (medians): grown corn 2.21 -> 1.86 ms, young
+//! corn 1.24 -> 1.08 ms. Half the packets share a node's load and its likely mispredicted branch among
+//! twice the rays. `croprow bench --json`, 4 runs alternating on the idle machine: `sim_realtime_factor`
+//! 32.6, 34.2, 39.7, 41.9 -> 38.3, 46.3, 46.6, 47.2. Why no traversal order helps: given every ray's
+//! final hit as its bound from the start (an oracle for reusing the last revolution's hits), a
+//! grown-corn revolution pops 48.2k nodes instead of 50.8k (young corn 26.3k for 26.4k, grown soybean
+//! 60.9k for 64.4k): the nodes a packet visits are nearly all ones its rays must cross before they
+//! hit. Tried the same session and dropped (grown corn CPU ms per revolution, same scans unless said;
+//! single runs are ±10 % on this host):
+//! - 32 rays a packet: 1.76 either way (the rays spread too far to share nodes);
+//! - other leaf sizes (max / min / traversal cost): 8/2/1 1.76, 12/6/3 1.68, 16/8/4 1.68, 8/4/4 1.72,
+//!   4/2/2 1.84, against 1.64 for 8/4/2;
+//! - starting each packet at the deepest node whose box holds the box round all its rays' stretches:
+//!   1.64-1.78 against 1.60-1.76 without;
+//! - both children tested at the parent, the two siblings in one 64-byte line and a far child tested
+//!   again when popped: 1.65-2.24 against 1.73-2.30 (5 runs), within the noise;
+//! - stalks tested on all lanes at once instead of lane by lane: 17.4M -> 18.8M instructions with the
+//!   above, the time within the noise;
+//! - long patches cut into pieces of at most 6 cm, each a leaf entry with a copy of its primitive:
+//!   3.5-3.9 ms (a ray tests the same leaf in several pieces), 2× the time;
+//! - 32 bins, or the heuristic on spans of any size: within the noise.
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use croprow_core::Pose2;

@@ -212,8 +212,9 @@ impl Lidar {
 
     /// Fires columns `first..last` (clamped to the revolution) from `body` and appends their returns.
     ///
-    /// Each laser's rays of up to 8 consecutive columns are cast together as one packet (they share the
-    /// walk through the field's grid and are tested against each primitive at once); the returns are
+    /// Each laser's rays of up to 16 consecutive columns are cast together as one packet (they share
+    /// the traversal of the field's bounding volume hierarchy and are tested against each box and
+    /// primitive at once); the returns are
     /// exactly those of casting ray by ray, and they and their noise draws follow column by column, beam
     /// by beam, as before.
     pub fn cast_columns(

@@ -13,9 +13,9 @@
 //!   the first one ends the ray.
 //!
 //! [`Scene::cast`] casts one ray that way. The LiDAR casts beam packets instead (`packet`: a laser's
-//! rays at 8 consecutive azimuths traverse a bounding volume hierarchy over the primitives together,
-//! `bvh`, each box and each primitive tested on all 8 at once, in one AVX2 register where the CPU has
-//! it), which return exactly what `cast` returns ray by ray; `cast` stays the path of the rays packets
+//! rays at 16 consecutive azimuths traverse a bounding volume hierarchy over the primitives together,
+//! `bvh`, each box and each primitive tested on all 16 at once, in two AVX2 registers where the CPU
+//! has them), which return exactly what `cast` returns ray by ray; `cast` stays the path of the rays packets
 //! do not suit (rising or near-vertical rays, relief) and the reference the packet tests compare
 //! against. The scene's primitives are stored in the order of the hierarchy's leaves.
 

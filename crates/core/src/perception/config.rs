@@ -252,6 +252,11 @@ pub struct DetectorConfig {
     /// Standard errors from zero at which the window's summed drift is applied. Default 3. Range
     /// [0.5, 20].
     pub register_z: f64,
+    /// Where the canopy ends inside the registered stretch (a row end): the bands past the farthest
+    /// one whose weight is at least this share of the fullest band's are not compared; their profiles
+    /// lean to one side as the canopy ends (see `perception::register`). 0 compares every band.
+    /// Default 0.3. Range [0, 1].
+    pub register_end_fraction: f64,
 }
 
 impl Default for DetectorConfig {
@@ -315,6 +320,7 @@ impl Default for DetectorConfig {
             register_window: 6,
             register_noise_m: 0.003,
             register_z: 3.0,
+            register_end_fraction: 0.3,
         }
     }
 }
@@ -400,6 +406,7 @@ impl DetectorConfig {
         check_count("detector.register_window", self.register_window, 2, 60)?;
         check_range("detector.register_noise_m", self.register_noise_m, 0.0005, 0.1)?;
         check_range("detector.register_z", self.register_z, 0.5, 20.0)?;
+        check_range("detector.register_end_fraction", self.register_end_fraction, 0.0, 1.0)?;
         Ok(())
     }
 }

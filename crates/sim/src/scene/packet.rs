@@ -13,21 +13,23 @@
 //! ray).
 //!
 //! The code is one source compiled twice ([`Isa`]): for the target's baseline (SSE2 on x86-64, where
-//! the 8 lanes take two registers) and for AVX2 (one register), picked at run time when the scene is
+//! the 16 lanes take four registers) and for AVX2 (two), picked at run time when the scene is
 //! built. Neither uses FMA, so both return the same bits (a test compares them ray by ray).
 //!
 //! Rays the packet does not suit go to [`Scene::cast`]: rays that rise or are near vertical, and relief
 //! (the packet takes the flat ground analytically).
 //!
-//! Cost (AVX2): young corn 11.3M instructions a revolution, grown corn 17.0M (the grid walk this
-//! replaced: 13.9M and 16.1M), at more instructions a cycle than the walk: a third less CPU time on
-//! open canopies, the same on closed ones, where the boxes of the crest's leaves overlap every
-//! downward ray. The measurements and what was tried are written down in `benches/lidar.rs`.
+//! Cost (AVX2): young corn 11.5M instructions a revolution, grown corn 17.4M; the boxes of a closed
+//! canopy's leaves overlap along the crest every downward ray skims, and the nodes a packet visits are
+//! nearly all ones it must visit (given each ray's final hit from the start, it pops 5 % fewer), so
+//! packets of 16 rays, which share that walk among twice the rays of 8 for a few more instructions,
+//! cut the time more than any reordering tried. The measurements and what was tried are written down
+//! in `benches/lidar.rs`.
 
 use super::{Class, Prim, Scene, Shape};
 
 /// Rays per packet at most (the lanes of the per-primitive tests).
-pub(crate) const LANES: usize = 8;
+pub(crate) const LANES: usize = 16;
 
 /// Rays whose horizontal component is below this (steeper than ~87°) are cast alone.
 const MIN_HORIZONTAL: f32 = 0.05;
@@ -89,7 +91,7 @@ impl Lanes {
     }
 
     /// A stalk or weed clump (primitive `index`) against every searching lane, one at a time. They are
-    /// few, and out of line: inlined, its unrolled lanes had the compiler hoist all 24 direction
+    /// few, and out of line: inlined, its unrolled lanes had the compiler hoist all the lanes' direction
     /// components out of the cell loop and copy them at every strip (~80 instructions a strip, 9 % of
     /// a grown-corn revolution).
     #[inline(never)]
@@ -381,7 +383,7 @@ mod tests {
     }
 
     /// The packets of whole revolutions from sensors 1.5 m over `(x, y)` heading `yaw`: each laser's
-    /// rays of 8 consecutive columns, with their origin.
+    /// rays of `LANES` consecutive columns, with their origin.
     fn packets(poses: &[(f32, f32, f32)]) -> Vec<([f32; 3], Vec<[f32; 3]>)> {
         let mut packets = Vec::new();
         for &(x, y, yaw) in poses {
