@@ -54,15 +54,16 @@ fn a_lattice_narrowed_by_a_missing_sector_is_not_followed() {
 }
 
 #[test]
-fn registration_leaves_out_the_bands_where_the_canopy_ends() {
+fn registration_with_an_end_fraction_leaves_out_the_bands_where_the_canopy_ends() {
     // Young soybean, no fault, registration on. Driving towards the row end, the far bands of the
     // registered stretch reached past the canopy's end and their profiles leaned to one side: the
     // window applied a 7 cm drift 3 m before the row end, the robot swerved and a wheel took a plant.
-    // The far bands under 30 % of the fullest band's weight are left out.
-    let mut guarded = case(662, "young soybean 13.8 m x 5 rows 0.78 m");
-    guarded.navigator.detector.register_enabled = true;
-    let mut unguarded = guarded.clone();
-    unguarded.navigator.detector.register_end_fraction = 0.0;
+    // With `register_end_fraction` 0.3 (opt-in: the 1000-run soak does not show it better), the far
+    // bands under 30 % of the fullest band's weight are left out.
+    let mut unguarded = case(662, "young soybean 13.8 m x 5 rows 0.78 m");
+    unguarded.navigator.detector.register_enabled = true;
+    let mut guarded = unguarded.clone();
+    guarded.navigator.detector.register_end_fraction = 0.3;
     let outcome = provoke_then_guard(&unguarded, &guarded);
     assert_eq!(outcome.end.as_str(), "done", "{outcome:?}");
 }

@@ -17,8 +17,7 @@
 //! odometry puts it: the odometry's sideways drift since the keyframe. With the true odometry the
 //! increments scatter about zero (±1.5 mm on the unit tests' synthetic canopy, about ±1 cm on the
 //! weedy young soybean of soak seed 662, and leaning to one side where the canopy ends inside the
-//! bands, so the far bands much emptier than the fullest are left out: `register_end_fraction`,
-//! docs/faults.md). Under a slide they lean to one side by the slide times the keyframe
+//! bands, which `register_end_fraction` leaves out when set: docs/faults.md). Under a slide they lean to one side by the slide times the keyframe
 //! distance (a little less: the sensor sees the plants from where it truly is, so their visible
 //! flanks move less than the plants).
 //!
