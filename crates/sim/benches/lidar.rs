@@ -239,6 +239,9 @@
 //! - 32 rays a packet: 1.76 either way (the rays spread too far to share nodes);
 //! - tiles of 2 neighbouring lasers × 8 columns instead of one laser × 16 columns: 2.02-2.16 against
 //!   1.78-2.10 (5 runs alternating, beside other work);
+//! - casting 8 packets' worth of columns laser by laser (consecutive packets side by side in azimuth,
+//!   sharing cached nodes): 1.74-1.96 against 1.70-2.02, young corn 1.04-1.18 against 0.98-1.38, within
+//!   the noise;
 //! - other leaf sizes (max / min / traversal cost): 8/2/1 1.76, 12/6/3 1.68, 16/8/4 1.68, 8/4/4 1.72,
 //!   4/2/2 1.84, against 1.64 for 8/4/2;
 //! - starting each packet at the deepest node whose box holds the box round all its rays' stretches:
