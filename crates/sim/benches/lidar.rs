@@ -233,7 +233,8 @@
 //! 32.6, 34.2, 39.7, 41.9 -> 38.3, 46.3, 46.6, 47.2. Why no traversal order helps: given every ray's
 //! final hit as its bound from the start (an oracle for reusing the last revolution's hits), a
 //! grown-corn revolution pops 48.2k nodes instead of 50.8k (young corn 26.3k for 26.4k, grown soybean
-//! 60.9k for 64.4k): the nodes a packet visits are nearly all ones its rays must cross before they
+//! 60.9k for 64.4k; counted with the children-tested-at-the-parent traversal listed below, 16
+//! rays): the nodes a packet visits are nearly all ones its rays must cross before they
 //! hit. Tried the same session and dropped (grown corn CPU ms per revolution, same scans unless said;
 //! single runs are ±10 % on this host):
 //! - 32 rays a packet: 1.76 either way (the rays spread too far to share nodes);

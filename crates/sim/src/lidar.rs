@@ -214,9 +214,8 @@ impl Lidar {
     ///
     /// Each laser's rays of up to 16 consecutive columns are cast together as one packet (they share
     /// the traversal of the field's bounding volume hierarchy and are tested against each box and
-    /// primitive at once); the returns are
-    /// exactly those of casting ray by ray, and they and their noise draws follow column by column, beam
-    /// by beam, as before.
+    /// primitive at once); the returns are exactly those of casting ray by ray, and they and their
+    /// noise draws follow column by column, beam by beam, as before.
     pub fn cast_columns(
         &mut self,
         field: &Field,

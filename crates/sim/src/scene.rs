@@ -15,9 +15,9 @@
 //! [`Scene::cast`] casts one ray that way. The LiDAR casts beam packets instead (`packet`: a laser's
 //! rays at 16 consecutive azimuths traverse a bounding volume hierarchy over the primitives together,
 //! `bvh`, each box and each primitive tested on all 16 at once, in two AVX2 registers where the CPU
-//! has them), which return exactly what `cast` returns ray by ray; `cast` stays the path of the rays packets
-//! do not suit (rising or near-vertical rays, relief) and the reference the packet tests compare
-//! against. The scene's primitives are stored in the order of the hierarchy's leaves.
+//! has them), which return exactly what `cast` returns ray by ray; `cast` stays the path of the rays
+//! packets do not suit (rising or near-vertical rays, relief) and the reference the packet tests
+//! compare against. The scene's primitives are stored in the order of the hierarchy's leaves.
 
 //! Primitives are cheap to intersect: flat patches (rectangles and ellipses) for leaves, vertical
 //! cylinders for stalks, axis-aligned spheroids for weed clumps. All geometry is `f32` in the field frame

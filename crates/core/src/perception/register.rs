@@ -13,13 +13,13 @@
 //! Registration measures the drift without any gate: every [`KEYFRAME_M`] of driving, the canopy's
 //! lateral profile (height-squared weight per 5 mm across the rows, in nine bands of 0.25 m along
 //! them, smoothed) is cross-correlated with the profile of the previous keyframe over the stretch
-//! both see, in that keyframe's row frame. The lag of the peak is how far this scan's canopy sits beside where the
-//! odometry puts it: the odometry's sideways drift since the keyframe. With the true odometry the
-//! increments scatter about zero (±1.5 mm on the unit tests' synthetic canopy, about ±1 cm on the
-//! weedy young soybean of soak seed 662, and leaning to one side where the canopy ends inside the
-//! bands, which `register_end_fraction` leaves out when set: docs/faults.md). Under a slide they lean to one side by the slide times the keyframe
-//! distance (a little less: the sensor sees the plants from where it truly is, so their visible
-//! flanks move less than the plants).
+//! both see, in that keyframe's row frame. The lag of the peak is how far this scan's canopy sits
+//! beside where the odometry puts it: the odometry's sideways drift since the keyframe. With the true
+//! odometry the increments scatter about zero (±1.5 mm on the unit tests' synthetic canopy, about
+//! ±1 cm on the weedy young soybean of soak seed 662, and leaning to one side where the canopy ends
+//! inside the bands, which `register_end_fraction` leaves out when set: docs/faults.md). Under a
+//! slide they lean to one side by the slide times the keyframe distance (a little less: the sensor
+//! sees the plants from where it truly is, so their visible flanks move less than the plants).
 //!
 //! Only significant drift is applied: the increments of the last `register_window` keyframes are
 //! summed, and when the sum lies more than `register_z` standard errors from zero (the per-keyframe noise
