@@ -22,8 +22,9 @@
 //! sees the plants from where it truly is, so their visible flanks move less than the plants).
 //!
 //! Only significant drift is applied: the increments of the last `register_window` keyframes are
-//! summed, and when the sum lies more than `register_z` standard errors from zero (the per-keyframe noise
-//! is `register_noise_m`) every increment of the window not yet applied moves the correction at once.
+//! summed (once there are at least [`MIN_TESTED`]), and when the sum lies more than `register_z`
+//! standard errors from zero (the per-keyframe noise is `register_noise_m`) every increment of the
+//! window not yet applied moves the correction at once.
 //! Increments that leave the window unapplied were noise and are dropped, so the fault-free odometry is
 //! left as it is. The correction is a translation of `odom` (the `nav` frame of the lane pipeline:
 //! `nav = odom + correction`), across the rows; it never rotates it.
@@ -54,6 +55,12 @@ const BAND_M: f64 = 0.25;
 const NBANDS: usize = 9;
 /// Largest increment taken for drift, m: a slide of 0.25 m per metre over a 0.2 m keyframe.
 const MAX_INCREMENT_M: f64 = 0.05;
+/// Fewest increments in the window for its sum to be tested (fewer when `register_window` is
+/// smaller): with two or three, the noise estimate rests on one or two differences, and with true
+/// odometry under a closed canopy three increments of -4, -2 and -11 mm once passed as a drift. Four,
+/// not a full window of 6: waiting for six let a wheel slide from the first metres of a lane take 3
+/// plants (soak seed 8).
+const MIN_TESTED: usize = 4;
 /// Weight of a new increment in the running noise estimate (a memory of about 20 keyframes, 3 m).
 const NOISE_GAIN: f64 = 0.05;
 /// Lags searched, bins either side: 6 cm, the drift of 0.4 m per metre over a keyframe; and in the
@@ -288,8 +295,8 @@ impl Register {
         (n > 0.0).then(|| sum / n)
     }
 
-    /// Adds an increment (m along the left normal of rows running along `direction`) to the window and
-    /// applies the window's unapplied increments when their sum is significant.
+    /// Adds an increment (m along the left normal of rows running along `direction`) to the window and,
+    /// once it holds [`MIN_TESTED`] increments, applies its unapplied ones when their sum is significant.
     fn push(&mut self, increment: f64, driven_m: f64, direction: f64, config: &DetectorConfig) {
         if let Some(&(last, _, _)) = self.window.back() {
             let d2 = 0.5 * (increment - last).powi(2);
@@ -302,7 +309,9 @@ impl Register {
         let n = self.window.len();
         let (total, driven) = self.window.iter().fold((0.0, 0.0), |(t, d), e| (t + e.0, d + e.1));
         let sigma = self.noise2.map_or(config.register_noise_m, |n| n.sqrt().max(config.register_noise_m));
-        if n < 2 || total.abs() <= config.register_z * sigma * (n as f64).sqrt() {
+        if n < MIN_TESTED.min(config.register_window)
+            || total.abs() <= config.register_z * sigma * (n as f64).sqrt()
+        {
             self.drift.slide_per_m = None;
             return;
         }
@@ -457,6 +466,27 @@ mod tests {
         // 2 mm per metre: 0.3 mm per keyframe, far under the 3 sigma of the test.
         let (_, correction) = drive(0.002, 0.0);
         assert_eq!(correction, [0.0, 0.0]);
+    }
+
+    #[test]
+    fn three_increments_are_never_tested_for_drift() {
+        // The increments true odometry gave under a closed canopy (docs: `MIN_TESTED`): their sum,
+        // 16.7 mm, passed 3 sigma of a noise estimate made of one difference. Only a fourth increment
+        // lets the window be tested, and with it the sum is no longer significant.
+        let config = DetectorConfig { register_enabled: true, ..DetectorConfig::default() };
+        let mut register = Register::new();
+        for increment in [0.0036, 0.0023, 0.0108, -0.0045] {
+            register.push(increment, 0.15, 0.0, &config);
+            assert_eq!(register.drift().correction, [0.0, 0.0], "{increment}");
+        }
+        // Four increments of a true slide are applied: 4 x 12 mm against 3 x 3 mm x 2.
+        let mut register = Register::new();
+        for _ in 0..3 {
+            register.push(0.012, 0.15, 0.0, &config);
+        }
+        assert_eq!(register.drift().correction, [0.0, 0.0]);
+        register.push(0.012, 0.15, 0.0, &config);
+        assert!((register.drift().correction[1] - 0.048).abs() < 1e-12, "{:?}", register.drift());
     }
 
     #[test]
