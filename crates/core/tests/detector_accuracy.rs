@@ -48,7 +48,7 @@ fn closed_canopy_hides_the_ground() {
 }
 
 #[test]
-fn registration_applies_no_drift_before_its_window_is_full() {
+fn registration_applies_no_drift_from_fewer_than_four_increments() {
     // Perfect odometry under a closed canopy, 5 cm off centre and yawed 1°: the first three
     // registration increments (-3.6, -2.3, -10.8 mm) passed the significance test against a noise
     // estimate made of one difference, a false 1.7 cm correction sheared the map and the rows were
