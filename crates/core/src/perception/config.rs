@@ -202,6 +202,14 @@ pub struct DetectorConfig {
     /// `fault-weed-patch` reads as a slide of 0.04-0.06 m/m: 13.6 cm off the line at 0.04, 11 at 0.05,
     /// 6.9 at 0.06, 4.4 at 0.07 as with the test off).
     pub shear_test_min_per_m: f64,
+    /// Default mode: how much farther than usual a scan's nearest row centroid may start before the
+    /// near view counts as empty (a gap across every row ahead) and the slide test makes no
+    /// comparisons, m; its pooled comparisons then stand still, so a declared slide is kept. 0 turns
+    /// the rule off. Default 0.2 (the view usually starts 1.4-1.5 m ahead over grown corn): in soak seed
+    /// 869 (curved grown corn, every row missing over 2.6 m, no slip) the crop past the gap, seen only
+    /// at the far end of the view, read as a slide of 0.02-0.06 m/m and then 0.3 as the near rows
+    /// returned; a false slide was declared and the robot ran over 19 plants.
+    pub shear_near_gap_m: f64,
     /// Default mode: side of the cubic voxels of the clutter test, m (see `clutter_min_points`).
     /// Default 0.2 (measured on soak seeds 451 and 148, returns more than 0.12 m above the ground): at
     /// 0.1 a young corn canopy lost 12-16 % of its returns (thin leaves crossed by one ring) against 3 %
@@ -312,6 +320,7 @@ impl Default for DetectorConfig {
             start_min_reach_m: 3.0,
             shear_window_m: 0.5,
             shear_test_min_per_m: 0.04,
+            shear_near_gap_m: 0.2,
             clutter_voxel_m: 0.2,
             clutter_min_points: 3,
             clutter_min_share: 0.03,
@@ -400,6 +409,7 @@ impl DetectorConfig {
         check_range("detector.start_min_reach_m", self.start_min_reach_m, 0.0, self.range_m + 11.0)?;
         check_range("detector.shear_window_m", self.shear_window_m, 0.0, 10.0)?;
         check_range("detector.shear_test_min_per_m", self.shear_test_min_per_m, 0.0, 1.0)?;
+        check_range("detector.shear_near_gap_m", self.shear_near_gap_m, 0.0, 10.0)?;
         check_range("detector.clutter_voxel_m", self.clutter_voxel_m, 0.01, 1.0)?;
         check_count("detector.clutter_min_points", self.clutter_min_points, 0, 1000)?;
         check_range("detector.clutter_min_share", self.clutter_min_share, 0.0, 1.0)?;
