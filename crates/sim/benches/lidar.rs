@@ -270,10 +270,10 @@
 //! lies inside the reach is final, the rest go on through the hierarchy from the reach's edge. The
 //! scans were bit for bit the same (`raycast_cost` hashes), but grown corn cost 25.8M instructions
 //! per revolution at a 3 m reach, 31.1M at 5 m, 35.5M at 7 m, against 17.45M for the packets
-//! (callgrind as above, 3 revolutions), and 5.1-5.3 ms CPU against 3.1-3.2 (young corn 2.1 against
-//! 1.5-1.7; 30 revolutions, alternating, load 1). Per revolution at 3 m: 18.3k primitives walked,
-//! 8.3k near a beam, 70.5k tile tests, and 1,107 of the 1,800 tiles still traced; at 7 m 38k, 21k,
-//! 65k and 228. Hidden primitives under a closed canopy are tested anyway: a tile's farthest lane
+//! (callgrind as above, 3 revolutions), and 5.1-5.3 ms CPU against 3.1-4.1 (young corn 2.1 against
+//! 1.5-1.7; `raycast_cost 30 grown-corn young-corn`, 2 runs of the tiles at 3 m, 4 of main, load
+//! 1-2). The first revolution at 3 m: 18.3k primitives walked, 8.3k near a beam, 70.5k tile tests,
+//! and 1,107 of the 1,800 tiles still traced; at 7 m 38k, 21k, 65k and 228 (temporary counters). Hidden primitives under a closed canopy are tested anyway: a tile's farthest lane
 //! (often one still bound for the ground) keeps most of them in, so the walk pays for the depth of
 //! the canopy that a near-first traversal never enters.
 
