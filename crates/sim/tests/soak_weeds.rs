@@ -66,12 +66,16 @@ fn dust_over_a_young_crop_does_not_lift_the_canopy_plane() {
     // returns, so the 95th height percentile jumped from the crop's tops (0.3 m) into the dust
     // (0.9 m), the canopy plane rose over the crop and the fit followed the dust (8 contacts, second
     // lane). The clutter test drops returns alone in their voxel before the plane is placed.
-    // The guarded run is the defaults (`clutter_min_points` 3).
+    // The guarded run is the defaults (`clutter_min_points` 3), both runs without canopy
+    // registration: with it (the default) the unguarded run spares the plants too (measured).
     let o = run_guarded(
         148,
         "young corn 13.7 m x 10 rows 0.73 m",
-        |c| c.navigator.detector.clutter_min_points = 0,
-        |_| {},
+        |c| {
+            c.navigator.detector.clutter_min_points = 0;
+            c.navigator.detector.register_enabled = false;
+        },
+        |c| c.navigator.detector.register_enabled = false,
     );
     assert_eq!((o.crop_contacts, o.unsafe_commands), (0, 0), "{o:?}");
 }

@@ -1,5 +1,5 @@
-//! Canopy registration (default mode, opt-in: `detector.register_enabled`): the sideways drift of the
-//! odometry that the wheels and the gyro cannot sense, measured from the canopy itself.
+//! Canopy registration (default mode, `detector.register_enabled`, on by default): the sideways drift
+//! of the odometry that the wheels and the gyro cannot sense, measured from the canopy itself.
 //!
 //! It sits between preprocessing and the lane pipeline ([`super::lanes`]). The lane pipeline keeps its
 //! map of row centroids in `odom`, carried by the odometry, and a tilted LiDAR never sees the rows under
