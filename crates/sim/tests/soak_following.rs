@@ -233,3 +233,19 @@ fn a_fault_free_grown_corn_field_has_no_false_slide() {
     let outcome = run_case(&case).expect("runs");
     assert_eq!((outcome.crop_contacts, outcome.unsafe_commands), (0, 0), "{outcome:?}");
 }
+
+#[test]
+fn a_slide_too_strong_to_crab_against_in_a_narrow_lane_stops_the_robot() {
+    // Grown soybean 0.70 m apart, slip 29 % with 0.07 m/s drift to the left from the start (0.2 m per
+    // metre driven): to hold the line the body must point 11° into the slide, which swings its corner
+    // tyres 12 cm across the rows. The MPC placed the tyres by the course over the ground and ran
+    // over 9 plants; placing them by the body it finds no way on that keeps them off the rows and
+    // plans no motion, and the navigator stops the robot and says why instead of standing still
+    // while "following".
+    let mut case = soak_case(350);
+    assert!(case.scenario.summary.starts_with("grown soybean 13.7 m x 10 rows 0.70 m apart"));
+    case.run.lanes = 1;
+    let o = run_case(&case).expect("runs");
+    assert_eq!((o.crop_contacts, o.unsafe_commands), (0, 0), "{o:?}");
+    assert_eq!(o.end, "stopped: no_safe_motion", "{o:?}");
+}

@@ -26,6 +26,7 @@
 //! Following, ClearingRowEnd: crop past the row end beyond an empty stretch ─► Following (a gap; opt-in)
 //! Turning, at the first pivot: crop past the row end ─► Stopped { CropPastRowEnd }
 //! Following, ClearingRowEnd: the row end recedes with the robot ─► Stopped { RowEndReceding }
+//! Following: the MPC plans no forward motion for 2 s ─► Stopped { NoSafeMotion } (the navigator)
 //! ```
 //!
 //! # The headland turn and what is bounded
@@ -585,6 +586,10 @@ pub enum StopReason {
     /// `max_end_recession_m` past where it was first seen: the canopy it sees does not end (a tilted
     /// LiDAR reading the ground as crop), so neither the row end nor the rows can be trusted.
     RowEndReceding,
+    /// While following, the MPC planned no forward motion for 2 s: every way on puts a tyre over a row
+    /// (a sideways slide the body must crab against in a narrow lane); set by the caller. A person
+    /// decides.
+    NoSafeMotion,
 }
 
 impl StopReason {
@@ -607,6 +612,7 @@ impl StopReason {
             StopReason::NoRoomToTurn => "no_room_to_turn",
             StopReason::CropPastRowEnd => "crop_past_row_end",
             StopReason::RowEndReceding => "row_end_receding",
+            StopReason::NoSafeMotion => "no_safe_motion",
         }
     }
 }

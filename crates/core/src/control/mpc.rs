@@ -24,7 +24,9 @@
 //! should stay inside its inter-row, the band between two rows (rows stand `(k + ½)·spacing` to the
 //! side) narrowed by half a tyre and `row_clearance_m`; every metre outside costs
 //! `corridor_weight · excess²` per stage. It matters when the robot starts or drifts far off the
-//! centre line: the lateral term alone would swing the rear tyres across a row on the way back.
+//! centre line: the lateral term alone would swing the rear tyres across a row on the way back. Under
+//! a slide `e_ψ` is the course's error and the body points a crab angle off it
+//! ([`Mpc::solve_crabbing`]): the tyres are placed by the body, `e_ψ − crab`.
 //!
 //! # Constraints
 //! Decision variables are the absolute inputs `(v_k, ω_k)`. Their magnitude bounds are hard: a box
@@ -238,6 +240,9 @@ struct Stage {
 struct Corridor {
     /// 0 when the path has no rows along it.
     weight: f64,
+    /// The body's angle to the motion the MPC plans with, rad: under a slide the state's heading is the
+    /// course over the ground and the body points `crab` off it (see [`Mpc::solve_crabbing`]).
+    crab_rad: f64,
     /// `(x, y)` of each tyre in `base_link`, m, and the centre of its inter-row, m.
     tyres: [(f64, f64, f64); 4],
     /// Half-width of the band a tyre centre may use, m.
@@ -245,10 +250,12 @@ struct Corridor {
 }
 
 impl Corridor {
-    const OFF: Corridor = Corridor { weight: 0.0, tyres: [(0.0, 0.0, 0.0); 4], half_band: 0.0 };
+    const OFF: Corridor =
+        Corridor { weight: 0.0, crab_rad: 0.0, tyres: [(0.0, 0.0, 0.0); 4], half_band: 0.0 };
 
-    /// The corridor for rows `spacing` apart, or none when the tyres do not fit between them.
-    fn new(cfg: &MpcConfig, spacing: Option<f64>) -> Self {
+    /// The corridor for rows `spacing` apart, or none when the tyres do not fit between them, for a
+    /// body `crab_rad` off the planned motion.
+    fn new(cfg: &MpcConfig, spacing: Option<f64>, crab_rad: f64) -> Self {
         let Some(s) = spacing.filter(|s| s.is_finite() && *s > 0.0) else { return Self::OFF };
         let half_band = 0.5 * s - 0.5 * cfg.tire_width_m - cfg.row_clearance_m;
         if cfg.corridor_weight <= 0.0 || half_band <= 0.0 {
@@ -259,6 +266,7 @@ impl Corridor {
         let (x, y) = (cfg.wheel_x_m, cfg.wheel_y_m);
         Self {
             weight: cfg.corridor_weight,
+            crab_rad,
             tyres: [(x, y, band), (x, -y, -band), (-x, y, band), (-x, -y, -band)],
             half_band,
         }
@@ -269,7 +277,8 @@ impl Corridor {
         if self.weight <= 0.0 {
             return (0.0, 0.0, 0.0);
         }
-        let (sn, cs) = ep.sin_cos();
+        // The tyres sit where the body points, not where it moves.
+        let (sn, cs) = (ep - self.crab_rad).sin_cos();
         let (mut j, mut d_ey, mut d_ep) = (0.0, 0.0, 0.0);
         for &(x, y, band) in &self.tyres {
             let off = ey + x * sn + y * cs - band;
@@ -467,7 +476,25 @@ impl Mpc {
         previous: Twist2,
         time_budget: Option<Duration>,
     ) -> Solution {
-        let finite = state.lateral_m.is_finite()
+        self.solve_crabbing(state, 0.0, path, speed_mps, previous, time_budget)
+    }
+
+    /// [`Mpc::solve`] for a robot that slides sideways: `state`'s heading is its course over the ground
+    /// (the direction it moves, which the unicycle model follows), and its body points `crab_rad` off
+    /// it (heading = course − crab), which places the tyres for the wheel corridor. Under a slide of
+    /// 0.2 m per metre the body turns 11° into it, and a 1.2 m long robot then swings its corner tyres
+    /// 12 cm across the rows.
+    pub fn solve_crabbing(
+        &mut self,
+        state: &Frenet,
+        crab_rad: f64,
+        path: &Path,
+        speed_mps: f64,
+        previous: Twist2,
+        time_budget: Option<Duration>,
+    ) -> Solution {
+        let finite = crab_rad.is_finite()
+            && state.lateral_m.is_finite()
             && state.heading_rad.is_finite()
             && state.s_m.is_finite()
             && speed_mps.is_finite()
@@ -501,7 +528,7 @@ impl Mpc {
         self.stage.v_ref = v_ref;
         self.stage.v_prev = previous.v;
         self.stage.w_prev = previous.omega;
-        self.stage.corridor = Corridor::new(&self.cfg, path.row_spacing_m());
+        self.stage.corridor = Corridor::new(&self.cfg, path.row_spacing_m(), crab_rad);
         // Curvature where the warm-start plan expects to be at each stage.
         let mut s = state.s_m;
         for (kappa, uk) in self.stage.kappa.iter_mut().zip(self.u.chunks_exact(2)) {
@@ -594,31 +621,51 @@ mod tests {
         for k in stage.kappa.iter_mut() {
             *k = rng.random_range(-0.8..0.8);
         }
-        // Far enough off the centre line for the tyres to leave their corridors.
-        stage.corridor = Corridor::new(&cfg, Some(0.75));
-        assert!(stage.corridor.cost(0.25, -0.12).0 > 0.0);
         let u: Vec<f64> = (0..2 * cfg.horizon_steps).map(|_| rng.random_range(-0.9..0.9)).collect();
-        let mut g = vec![0.0; u.len()];
-        stage.gradient(&u, &mut g);
-        let h = 1e-6;
-        for i in 0..u.len() {
-            let (mut up, mut um) = (u.clone(), u.clone());
-            up[i] += h;
-            um[i] -= h;
-            let fd = (stage.cost(&up) - stage.cost(&um)) / (2.0 * h);
-            // Central differences: O(h²) truncation plus round-off ~ 1e-10 / h on costs of order 10.
-            assert!(
-                (fd - g[i]).abs() < 1e-5 * (1.0 + fd.abs()),
-                "component {i}: adjoint {} vs fd {fd}",
-                g[i]
-            );
+        // Far enough off the centre line for the tyres to leave their corridors; and the same with the
+        // body crabbing 0.15 rad off the planned motion (a slide).
+        for crab in [0.0, 0.15] {
+            stage.corridor = Corridor::new(&cfg, Some(0.75), crab);
+            assert!(stage.corridor.cost(0.25, -0.12).0 > 0.0);
+            let mut g = vec![0.0; u.len()];
+            stage.gradient(&u, &mut g);
+            let h = 1e-6;
+            for i in 0..u.len() {
+                let (mut up, mut um) = (u.clone(), u.clone());
+                up[i] += h;
+                um[i] -= h;
+                let fd = (stage.cost(&up) - stage.cost(&um)) / (2.0 * h);
+                // Central differences: O(h²) truncation plus round-off ~ 1e-10 / h on costs of order 10.
+                assert!(
+                    (fd - g[i]).abs() < 1e-5 * (1.0 + fd.abs()),
+                    "crab {crab}, component {i}: adjoint {} vs fd {fd}",
+                    g[i]
+                );
+            }
         }
+    }
+
+    #[test]
+    fn a_crabbing_body_places_its_tyres_by_its_heading_not_its_course() {
+        // Sliding left at 0.2 m/m, the body points atan(0.2) ≈ 0.2 rad right of its motion: its tyres
+        // sit where a robot turned by -0.2 rad would have them.
+        let cfg = MpcConfig::default();
+        let crabbing = Corridor::new(&cfg, Some(0.75), 0.2);
+        let aligned = Corridor::new(&cfg, Some(0.75), 0.0);
+        for (ey, ep) in [(0.1, 0.0), (0.25, 0.05), (-0.2, -0.1)] {
+            assert_eq!(crabbing.cost(ey, ep), aligned.cost(ey, ep - 0.2), "{ey} {ep}");
+        }
+        // 0.25 m left of the line, moving along it: aligned, the left tyres are 0.262 m from their
+        // inter-row centre, inside the 0.27 m band; crabbing, the rear tyres swing 0.12 m further left
+        // (0.368 and 0.374 m off), out of their bands.
+        assert_eq!(aligned.cost(0.25, 0.0).0, 0.0);
+        assert!(crabbing.cost(0.25, 0.0).0 > 0.0);
     }
 
     #[test]
     fn the_wheel_corridor_costs_only_tyres_over_a_row() {
         let cfg = MpcConfig::default();
-        let corridor = Corridor::new(&cfg, Some(0.75));
+        let corridor = Corridor::new(&cfg, Some(0.75), 0.0);
         // Centred: every tyre 0.762 m out, in its inter-row 0.375-1.125 m (band half-width 0.27 m).
         assert_eq!(corridor.cost(0.0, 0.0), (0.0, 0.0, 0.0));
         // 0.3 m left: the left tyres are 0.312 m from their inter-row centre, 0.042 m too far; the
@@ -628,8 +675,8 @@ mod tests {
         assert!((j - expected).abs() < 1e-9, "{j} vs {expected}");
         assert!(d_ey > 0.0 && d_ep.abs() < 1e-9, "{d_ey} {d_ep}");
         // No rows along the path, or rows too narrow for a tyre: no corridor.
-        assert_eq!(Corridor::new(&cfg, None).cost(0.3, 0.2), (0.0, 0.0, 0.0));
-        assert_eq!(Corridor::new(&cfg, Some(0.2)).cost(0.3, 0.2), (0.0, 0.0, 0.0));
+        assert_eq!(Corridor::new(&cfg, None, 0.0).cost(0.3, 0.2), (0.0, 0.0, 0.0));
+        assert_eq!(Corridor::new(&cfg, Some(0.2), 0.0).cost(0.3, 0.2), (0.0, 0.0, 0.0));
     }
 
     #[test]
