@@ -1,5 +1,5 @@
 //! `croprow evaluate --suite soak`: a small soak writes `soak.json` with every documented key, one
-//! replay scenario per failing seed, and exits non-zero exactly when a run failed.
+//! replay scenario per failing or stopped seed, and exits non-zero exactly when a run failed.
 
 use std::process::Command;
 
@@ -23,6 +23,12 @@ fn small_soak_writes_the_report_and_its_exit_code_tells_failures() {
     assert_eq!(each.len(), 4, "one line per run: {v}");
     assert!(each.iter().all(|r| r["end"].as_str().is_some_and(|e| !e.is_empty())), "{v}");
     let failures = v["failures"].as_array().expect("failures is a list");
+    for r in each {
+        let seed = r["seed"].as_u64().expect("seed");
+        let failed = failures.iter().any(|f| f["seed"].as_u64() == Some(seed));
+        let clean = r["end"].as_str() == Some("done") && !failed;
+        assert_eq!(r.get("replay").is_none(), clean, "a replay line for every run but a clean one: {r}");
+    }
     for f in failures {
         let seed = f["seed"].as_u64().expect("seed");
         assert!(f["scenario"].as_str().is_some_and(|s| !s.is_empty()), "{f}");
@@ -61,6 +67,13 @@ fn unknown_suite_and_zero_runs_are_refused() {
 
 /// Runs a one-seed soak with `sets` and returns its `soak.json`.
 fn soak_seed(seed: u64, sets: &[&str], tag: &str) -> serde_json::Value {
+    let (v, out) = soak_seed_in(seed, sets, tag);
+    let _ = std::fs::remove_dir_all(&out);
+    v
+}
+
+/// [`soak_seed`], leaving its output directory (returned) in place.
+fn soak_seed_in(seed: u64, sets: &[&str], tag: &str) -> (serde_json::Value, std::path::PathBuf) {
     let out = std::env::temp_dir().join(format!("croprow-soak-cli-{tag}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&out);
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_croprow"));
@@ -70,8 +83,24 @@ fn soak_seed(seed: u64, sets: &[&str], tag: &str) -> serde_json::Value {
     }
     cmd.output().expect("runs");
     let text = std::fs::read_to_string(out.join("soak.json")).expect("soak.json written");
+    (serde_json::from_str(&text).expect("soak.json is JSON"), out)
+}
+
+#[test]
+fn a_run_that_stops_safely_gets_a_replay_scenario() {
+    // Seed 2014: young corn whose LiDAR dies after 6.9 m: the robot stops (`no_rows`) with no contact,
+    // which is no failure, and the stop can be driven again from its scenario.
+    let (v, out) = soak_seed_in(2014, &[], "stop");
+    let run = &v["each"][0];
+    assert!(run["faults"].as_str().is_some_and(|f| f.contains("LiDAR dead")), "{run}");
+    assert!(run["end"].as_str().is_some_and(|e| e.starts_with("stopped")), "{run}");
+    assert_eq!(v["failures"].as_array().map(Vec::len), Some(0), "{v}");
+    let replay = run["replay"].as_str().expect("a replay line for the stopped run");
+    let scenario = out.join("stop-2014.toml");
+    assert!(replay.contains(&format!("--scenario {}", scenario.display())), "{replay}");
+    let text = std::fs::read_to_string(&scenario).expect("stop-2014.toml written");
+    assert!(text.contains("seed = 2014"), "{text}");
     let _ = std::fs::remove_dir_all(&out);
-    serde_json::from_str(&text).expect("soak.json is JSON")
 }
 
 #[test]

@@ -5,11 +5,13 @@
 //! Run `k` uses seed `S + k`. Writes `DIR/soak.json`:
 //! `{runs, seed, distance_m, sim_time_s, wall_time_s, crop_contacts, unsafe_commands, panics, errors,
 //! ends: {"done": n, "stopped: no_rows": n, ...}, failures: [{seed, scenario, what, replay}],
-//! each: [{seed, crop, end, distance_m, crop_contacts, unsafe_commands, faults}]}`, and for
+//! each: [{seed, crop, end, distance_m, crop_contacts, unsafe_commands, faults, replay?}]}`, and for
 //! every failing seed `DIR/fail-SEED.toml`, its scenario, so that the `replay` command
 //! (`croprow simulate --scenario DIR/fail-SEED.toml --set ... --out DIR/replay-SEED`) drives it again
 //! with plots and a trajectory; `croprow evaluate --suite soak --runs 1 --seed SEED` re-runs it under the
-//! monitor. `--set KEY=VALUE` (navigator keys only) changes every run's navigator, so an opt-in can be
+//! monitor. A run that did not fail but did not finish its lanes either (a safe stop such as
+//! `stopped: wrong_lane`, or `never acquired`) gets `DIR/stop-SEED.toml` and its `replay` line in
+//! `each`: a stop is safe, and still a robot standing in a field. `--set KEY=VALUE` (navigator keys only) changes every run's navigator, so an opt-in can be
 //! soaked; the overrides go into each replay line. Exits non-zero when any run failed.
 
 use std::any::Any;
@@ -55,6 +57,10 @@ struct RunLine {
     unsafe_commands: usize,
     /// Faults injected, `;`-separated (empty for none).
     faults: String,
+    /// The command that drives this run again, for every run that did not end `done` without a
+    /// failure.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    replay: Option<String>,
 }
 
 /// `soak.json`.
@@ -167,6 +173,7 @@ pub fn run(runs: u32, seed: u64, sets: &[String], out: &Path) -> Result<()> {
             crop_contacts: 0,
             unsafe_commands: 0,
             faults: summary.split_once("; faults: ").map_or(String::new(), |(_, f)| f.replace(", ", "; ")),
+            replay: None,
         };
         let whats = match verdict {
             Some(Verdict::Ran(o)) => {
@@ -192,11 +199,16 @@ pub fn run(runs: u32, seed: u64, sets: &[String], out: &Path) -> Result<()> {
             }
             None => bail!("seed {s}: the run did not finish"),
         };
-        report.each.push(line);
         if whats.is_empty() {
+            if line.end != "done" {
+                line.replay = Some(write_replay(&case, out, "stop")?);
+            }
+            report.each.push(line);
             continue;
         }
-        let replay = write_replay(&case, out)?;
+        let replay = write_replay(&case, out, "fail")?;
+        line.replay = Some(replay.clone());
+        report.each.push(line);
         for what in whats {
             report.failures.push(Failure {
                 seed: s,
@@ -260,9 +272,10 @@ fn payload_text(payload: &(dyn Any + Send)) -> String {
         .unwrap_or_else(|| "a panic without a message".to_owned())
 }
 
-/// Writes the case's scenario to `DIR/fail-SEED.toml` and returns the command that replays it.
-fn write_replay(case: &Case, out: &Path) -> Result<String> {
-    let path = out.join(format!("fail-{}.toml", case.seed));
+/// Writes the case's scenario to `DIR/KIND-SEED.toml` (`fail`, `stop`) and returns the command that
+/// replays it.
+fn write_replay(case: &Case, out: &Path, kind: &str) -> Result<String> {
+    let path = out.join(format!("{kind}-{}.toml", case.seed));
     let text = toml::to_string(&case.scenario).context("serialising the scenario")?;
     let header = format!("# soak seed {}: {}\n", case.seed, case.scenario.summary);
     fs::write(&path, header + &text).with_context(|| format!("writing {}", path.display()))?;
@@ -285,6 +298,13 @@ fn print_summary(r: &Report, out: &Path) {
     );
     let ends: Vec<String> = r.ends.iter().map(|(k, v)| format!("{k} {v}")).collect();
     println!("  ends: {}", ends.join(", "));
+    let failed = |seed: u64| r.failures.iter().any(|f| f.seed == seed);
+    let stopped = r.each.iter().filter(|l| l.replay.is_some() && !failed(l.seed)).count();
+    if stopped > 0 {
+        println!(
+            "  {stopped} run(s) stopped short without a failure: their replay lines are in soak.json (`each`)"
+        );
+    }
     for f in &r.failures {
         println!("  FAIL seed {}: {}\n    {}\n    replay: {}", f.seed, f.what, f.scenario, f.replay);
     }
