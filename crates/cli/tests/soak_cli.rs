@@ -88,8 +88,9 @@ fn soak_seed_in(seed: u64, sets: &[&str], tag: &str) -> (serde_json::Value, std:
 
 #[test]
 fn a_run_that_stops_safely_gets_a_replay_scenario() {
-    // Seed 2014: young corn whose LiDAR dies after 6.9 m: the robot stops (`no_rows`) with no contact,
-    // which is no failure, and the stop can be driven again from its scenario.
+    // Seed 2014: young corn whose LiDAR dies after 6.9 m: the robot stops short of its lanes (at the
+    // next lane's entry, `reentry_not_confirmed`) with no contact, which is no failure, and the stop
+    // can be driven again from its scenario.
     let (v, out) = soak_seed_in(2014, &[], "stop");
     let run = &v["each"][0];
     assert!(run["faults"].as_str().is_some_and(|f| f.contains("LiDAR dead")), "{run}");

@@ -11,8 +11,9 @@
 //! with plots and a trajectory; `croprow evaluate --suite soak --runs 1 --seed SEED` re-runs it under the
 //! monitor. A run that did not fail but did not finish its lanes either (a safe stop such as
 //! `stopped: wrong_lane`, or `never acquired`) gets `DIR/stop-SEED.toml` and its `replay` line in
-//! `each`: a stop is safe, and still a robot standing in a field. `--set KEY=VALUE` (navigator keys only) changes every run's navigator, so an opt-in can be
-//! soaked; the overrides go into each replay line. Exits non-zero when any run failed.
+//! `each`: a stop is safe, and still a robot standing in a field. `--set KEY=VALUE` (navigator keys
+//! only) changes every run's navigator, so an opt-in can be soaked; the overrides go into each replay
+//! line. Exits non-zero when any run failed.
 
 use std::any::Any;
 use std::cell::RefCell;
