@@ -1,21 +1,31 @@
 //! Soak seeds (issue 6) that touched plants with no fault at all, all grown soybean while following:
-//! the slide test declared a false slide, the robot turned into it, and the slide grew to its bound,
-//! the motion skew of the scans taken while it turned reading as more slide (docs/faults.md, "Contacts
-//! with no fault"; "Motion deskew" shows the growth also happens without skew, seed 611). Guards `DetectorConfig::deskew` (opt-in, off by default): each test replays the seed's
-//! case as `soak_case` draws it, asserts that it touches plants with the scans used as stamped, and
-//! that it runs clean with each return moved to the pose at the scan stamp (seed 641 is now clean either
-//! way: its test says why). The summary check catches a generator that changed.
+//! the slide test (on by default then, opt-in since session 28) declared a false slide, the robot
+//! turned into it, and the slide grew to its bound, the motion skew of the scans taken while it turned
+//! reading as more slide (docs/faults.md, "Contacts with no fault"; "Motion deskew" shows the growth
+//! also happens without skew, seed 611). Guards `DetectorConfig::deskew` (opt-in, off by default):
+//! each test replays the seed's case as `soak_case` draws it, with the slide test on, asserts that it
+//! touches plants with the scans used as stamped, and that it runs clean with each return moved to
+//! the pose at the scan stamp (seed 641 is now clean either way: its test says why). The summary
+//! check catches a generator that changed.
 
-use croprow_sim::experiment::soak::{Outcome, run_case, soak_case};
+use croprow_sim::experiment::soak::{Case, Outcome, run_case, soak_case};
 
-/// Runs the soak case of `seed` (whose summary starts with `summary`) without the deskew (it must
-/// touch plants, as it did) and with it; returns the deskewed outcome. Both runs go without canopy
-/// registration (on by default), which was not there when these seeds were traced: with it, seed 638
-/// spares the plants without the deskew (measured).
-fn run_deskewed(seed: u64, summary: &str) -> Outcome {
+/// The soak case of `seed` (whose summary starts with `summary`) as these seeds were traced: with the
+/// slide test (`detector.shear_window_m` 0.5; off by default since session 28, which spares these
+/// seeds' plants with or without the deskew) and without canopy registration (on by default), which
+/// was not there then: with it, seed 638 spares the plants without the deskew (measured).
+fn traced_case(seed: u64, summary: &str) -> Case {
     let mut case = soak_case(seed);
     assert!(case.scenario.summary.starts_with(summary), "{}", case.scenario.summary);
     case.navigator.detector.register_enabled = false;
+    case.navigator.detector.shear_window_m = 0.5;
+    case
+}
+
+/// Runs [`traced_case`] without the deskew (it must touch plants, as it did) and with it; returns the
+/// deskewed outcome.
+fn run_deskewed(seed: u64, summary: &str) -> Outcome {
+    let case = traced_case(seed, summary);
     let mut skewed = case.clone();
     skewed.navigator.detector.deskew = false;
     let before = run_case(&skewed).expect("runs");
@@ -38,9 +48,7 @@ fn a_false_slide_near_the_row_end_no_longer_reaches_a_row() {
     // Lane 1, 1.75 m before the row end: declared at 20.6 s, the robot 10° off the rows when it
     // lapsed; 1 plant. The deskew drove it clean; since the MPC places the tyres by the crabbing
     // body (session 25) it is clean without the deskew too, so both are asserted clean.
-    let mut case = soak_case(641);
-    assert!(case.scenario.summary.starts_with("grown soybean 10.8 m x 9 rows 0.70 m"));
-    case.navigator.detector.register_enabled = false;
+    let mut case = traced_case(641, "grown soybean 10.8 m x 9 rows 0.70 m");
     for deskew in [false, true] {
         case.navigator.detector.deskew = deskew;
         let o = run_case(&case).expect("runs");

@@ -67,15 +67,21 @@ fn dust_over_a_young_crop_does_not_lift_the_canopy_plane() {
     // (0.9 m), the canopy plane rose over the crop and the fit followed the dust (8 contacts, second
     // lane). The clutter test drops returns alone in their voxel before the plane is placed.
     // The guarded run is the defaults (`clutter_min_points` 3), both runs without canopy
-    // registration: with it (the default) the unguarded run spares the plants too (measured).
+    // registration and with the slide test (`shear_window_m` 0.5), as when this was traced: with
+    // registration on (the default), or the slide test off (the default since session 28), the
+    // unguarded run spares the plants too (measured).
+    let as_traced = |c: &mut Case| {
+        c.navigator.detector.register_enabled = false;
+        c.navigator.detector.shear_window_m = 0.5;
+    };
     let o = run_guarded(
         148,
         "young corn 13.7 m x 10 rows 0.73 m",
         |c| {
             c.navigator.detector.clutter_min_points = 0;
-            c.navigator.detector.register_enabled = false;
+            as_traced(c);
         },
-        |c| c.navigator.detector.register_enabled = false,
+        as_traced,
     );
     assert_eq!((o.crop_contacts, o.unsafe_commands), (0, 0), "{o:?}");
 }

@@ -303,9 +303,10 @@ impl RowDetector {
         &self.centroids
     }
 
-    /// The sideways slide the default pipeline's slide test found at the last scan, m per metre driven,
-    /// positive when the robot slides to its left (`base_link` y) unseen by the odometry; `None` when
-    /// it found none (or in the paper mode). See `perception::lanes`, the slide test.
+    /// The sideways slide found at the last scan, m per metre driven, positive when the robot slides to
+    /// its left (`base_link` y) unseen by the odometry: canopy registration's while its drift is
+    /// significant, else the slide test's (opt-in, `shear_window_m`); `None` when neither found one
+    /// (or in the paper mode). See `perception::register` and `perception::lanes`, the slide test.
     pub fn slide_per_m(&self) -> Option<f64> {
         if self.config.register_enabled
             && let Some(k) = self.register.drift().slide_per_m

@@ -2100,7 +2100,7 @@ mod tests {
         assert_eq!(slide_consensus_of_rows(&rows, -2), None);
     }
 
-    /// The slide test on, as measured in docs/faults.md (the defaults, spelled out).
+    /// The slide test on, as measured in docs/faults.md (opt-in since session 28).
     fn slide_test_on() -> DetectorConfig {
         DetectorConfig { shear_window_m: 0.5, shear_max_per_m: 0.12, ..DetectorConfig::default() }
     }
