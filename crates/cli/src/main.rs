@@ -4,6 +4,8 @@
 mod cmd;
 mod plot;
 
+use std::process::ExitCode;
+
 use clap::{Parser, Subcommand};
 
 /// LiDAR-only crop-row detection, row following and lane switching for field robots.
@@ -35,9 +37,9 @@ enum Command {
     Node(cmd::node::Args),
 }
 
-fn main() -> anyhow::Result<()> {
+fn main() -> ExitCode {
     let cli = Cli::parse();
-    match cli.command {
+    let result = match cli.command {
         None => cmd::demo::run(),
         Some(Command::Scenarios(a)) => cmd::scenarios::run(a),
         Some(Command::DetectSim(a)) => cmd::detect_sim::run(a),
@@ -48,5 +50,14 @@ fn main() -> anyhow::Result<()> {
         Some(Command::Bench(a)) => cmd::bench::run(a),
         #[cfg(feature = "ros2")]
         Some(Command::Node(a)) => cmd::node::run(a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            // The cause chain, without anyhow's backtrace (printed when RUST_BACKTRACE is set): a bad
+            // file or a soak with failures is the user's news, not a bug in croprow.
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
     }
 }

@@ -43,3 +43,17 @@ fn detect_sim_refuses_an_absurd_length() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("length_m"));
 }
+
+#[test]
+fn errors_print_their_cause_chain_without_a_backtrace() {
+    // A user's mistake is not a crash: one line with its causes, even where RUST_BACKTRACE is set.
+    let out = Command::new(env!("CARGO_BIN_EXE_croprow"))
+        .args(["scenarios", "--show", "moon-corn"])
+        .env("RUST_BACKTRACE", "1")
+        .output()
+        .expect("runs");
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.starts_with("error: unknown scenario `moon-corn`"), "{err}");
+    assert!(!err.contains("backtrace") && err.lines().count() == 1, "{err}");
+}
