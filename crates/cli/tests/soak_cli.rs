@@ -150,3 +150,73 @@ fn overrides_outside_the_navigator_or_out_of_range_are_refused_before_any_run() 
         }
     }
 }
+
+#[test]
+fn a_baseline_is_compared_seed_by_seed_and_a_bad_one_is_refused_before_any_run() {
+    let dir = std::env::temp_dir().join(format!("croprow-soak-cli-baseline-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    // An earlier soak of seeds 5 and 6 in which seed 5 ran over 3 plants and seed 6 ended elsewhere.
+    let old = dir.join("old.json");
+    let earlier = r#"{"each": [
+        {"seed": 5, "end": "done", "crop_contacts": 3},
+        {"seed": 6, "end": "stopped: no_rows", "crop_contacts": 0},
+        {"seed": 99, "end": "done", "crop_contacts": 7}]}"#;
+    std::fs::write(&old, earlier).expect("baseline written");
+    let out = dir.join("now");
+    let run = Command::new(env!("CARGO_BIN_EXE_croprow"))
+        .args(["evaluate", "--suite", "soak", "--runs", "2", "--seed", "5", "--baseline"])
+        .arg(&old)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .expect("runs");
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("soak.json")).expect("soak.json"))
+            .expect("JSON");
+    let each = v["each"].as_array().expect("each");
+    let plants = |i: usize| each[i]["crop_contacts"].as_u64().expect("contacts");
+    let b = &v["baseline"];
+    // Seed 99 is not in this soak: only the two common seeds count.
+    assert_eq!(b["common_runs"].as_u64(), Some(2), "{b}");
+    assert_eq!(b["crop_contacts"][0].as_u64(), Some(3), "{b}");
+    assert_eq!(b["crop_contacts"][1].as_u64(), Some(plants(0) + plants(1)), "{b}");
+    assert_eq!(b["done"][0].as_u64(), Some(1), "{b}");
+    let ends_changed =
+        usize::from(each[0]["end"] != "done") + usize::from(each[1]["end"] != "stopped: no_rows");
+    assert_eq!(b["ends_changed"].as_u64(), Some(ends_changed as u64), "{b}");
+    let fewer = b["fewer"].as_array().expect("fewer");
+    assert_eq!(fewer.len(), usize::from(plants(0) < 3), "{b}");
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(stdout.contains("2 seeds in common") && stdout.contains("3 -> "), "{stdout}");
+
+    let missing = Command::new(env!("CARGO_BIN_EXE_croprow"))
+        .args(["evaluate", "--suite", "soak", "--runs", "2", "--baseline"])
+        .arg(dir.join("nope.json"))
+        .arg("--out")
+        .arg(dir.join("never"))
+        .output()
+        .expect("runs");
+    let err = String::from_utf8_lossy(&missing.stderr);
+    assert!(!missing.status.success() && err.contains("reading --baseline"), "{err}");
+    assert!(!dir.join("never").exists(), "no run starts on a bad baseline");
+    std::fs::write(&old, "{\"runs\": 3}").expect("written");
+    let wrong = Command::new(env!("CARGO_BIN_EXE_croprow"))
+        .args(["evaluate", "--suite", "soak", "--runs", "2", "--baseline"])
+        .arg(&old)
+        .arg("--out")
+        .arg(dir.join("never"))
+        .output()
+        .expect("runs");
+    let err = String::from_utf8_lossy(&wrong.stderr);
+    assert!(!wrong.status.success() && err.contains("is not a soak.json"), "{err}");
+    let paper = Command::new(env!("CARGO_BIN_EXE_croprow"))
+        .args(["evaluate", "--suite", "paper", "--baseline"])
+        .arg(&old)
+        .arg("--out")
+        .arg(dir.join("never"))
+        .output()
+        .expect("runs");
+    assert!(String::from_utf8_lossy(&paper.stderr).contains("--baseline goes with --suite soak"));
+    let _ = std::fs::remove_dir_all(&dir);
+}

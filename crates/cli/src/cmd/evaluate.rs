@@ -75,6 +75,10 @@ pub struct Args {
     /// suite `detector.*` keys also change the default-mode detector of the detection runs. Repeatable.
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
+    /// Soak: a previous run's `soak.json` to compare with seed by seed (plants run over, runs that
+    /// touched plants, runs done, and each seed that changed), e.g. the run of the build before.
+    #[arg(long, value_name = "SOAK_JSON")]
+    pub baseline: Option<PathBuf>,
 }
 
 /// Detection errors as in Table I.
@@ -176,8 +180,11 @@ impl Pooled {
 /// Runs the subcommand.
 pub fn run(args: Args) -> Result<()> {
     match args.suite.as_str() {
+        "paper" if args.baseline.is_some() => bail!("--baseline goes with --suite soak"),
         "paper" => {}
-        "soak" => return super::soak::run(args.runs, args.seed, &args.set, &args.out),
+        "soak" => {
+            return super::soak::run(args.runs, args.seed, &args.set, &args.out, args.baseline.as_deref());
+        }
         other => bail!("unknown suite `{other}` (known: paper, soak)"),
     }
     let navigator = super::simulate::navigator_with_sets(

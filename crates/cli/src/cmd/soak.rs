@@ -13,7 +13,11 @@
 //! `stopped: wrong_lane`, or `never acquired`) gets `DIR/stop-SEED.toml` and its `replay` line in
 //! `each`: a stop is safe, and still a robot standing in a field. `--set KEY=VALUE` (navigator keys
 //! only) changes every run's navigator, so an opt-in can be soaked; the overrides go into each replay
-//! line. Exits non-zero when any run failed.
+//! line. `--baseline OLD/soak.json` compares the runs seed by seed with an earlier soak (the build
+//! before, or the defaults against an opt-in): one sample of 1000 runs moves by chance, and a change
+//! to the start or the detector reshuffles a few dozen runs, so the seeds that changed say more than
+//! the totals. The comparison is printed and written as `baseline` in `soak.json`. Exits non-zero when
+//! any run failed.
 
 use std::any::Any;
 use std::cell::RefCell;
@@ -29,7 +33,7 @@ use anyhow::{Context, Result, bail};
 use croprow_io::overrides;
 use croprow_sim::experiment::soak::{Case, Outcome, run_case, soak_case};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Most runs one command may ask for.
 const MAX_RUNS: u32 = 1_000_000;
@@ -81,6 +85,88 @@ struct Report {
     failures: Vec<Failure>,
     /// Every run, in seed order.
     each: Vec<RunLine>,
+    /// The comparison with `--baseline`, when given.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    baseline: Option<Comparison>,
+}
+
+/// What `--baseline` reads of an earlier `soak.json`: each run's seed, end and contacts.
+#[derive(Debug, Clone, Deserialize)]
+struct BaselineRun {
+    seed: u64,
+    end: String,
+    crop_contacts: usize,
+}
+
+#[derive(Debug, Deserialize)]
+struct BaselineFile {
+    each: Vec<BaselineRun>,
+}
+
+/// A seed whose plants run over changed against the baseline.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+struct SeedChange {
+    seed: u64,
+    before: usize,
+    after: usize,
+}
+
+/// This soak against `--baseline`, over the seeds both ran: `[before, after]` pairs.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+struct Comparison {
+    file: String,
+    /// Seeds both soaks ran.
+    common_runs: usize,
+    crop_contacts: [usize; 2],
+    runs_touching: [usize; 2],
+    done: [usize; 2],
+    /// Seeds that ran over fewer plants now, and over more.
+    fewer: Vec<SeedChange>,
+    more: Vec<SeedChange>,
+    /// Seeds whose end (`done`, `stopped: ...`) changed.
+    ends_changed: usize,
+}
+
+/// Reads the runs of an earlier `soak.json`.
+fn load_baseline(path: &Path) -> Result<Vec<BaselineRun>> {
+    let text = fs::read_to_string(path).with_context(|| format!("reading --baseline {}", path.display()))?;
+    let file: BaselineFile = serde_json::from_str(&text)
+        .with_context(|| format!("--baseline {} is not a soak.json with an `each` list", path.display()))?;
+    Ok(file.each)
+}
+
+/// Compares the runs `now` with the `before` ones seed by seed, over the seeds both hold.
+fn compare(file: &Path, before: &[BaselineRun], now: &[RunLine]) -> Comparison {
+    let old: BTreeMap<u64, &BaselineRun> = before.iter().map(|r| (r.seed, r)).collect();
+    let mut c = Comparison {
+        file: file.display().to_string(),
+        common_runs: 0,
+        crop_contacts: [0; 2],
+        runs_touching: [0; 2],
+        done: [0; 2],
+        fewer: Vec::new(),
+        more: Vec::new(),
+        ends_changed: 0,
+    };
+    for run in now {
+        let Some(was) = old.get(&run.seed) else { continue };
+        c.common_runs += 1;
+        for (k, (plants, end)) in
+            [(was.crop_contacts, &was.end), (run.crop_contacts, &run.end)].into_iter().enumerate()
+        {
+            c.crop_contacts[k] += plants;
+            c.runs_touching[k] += usize::from(plants > 0);
+            c.done[k] += usize::from(end == "done");
+        }
+        let change = SeedChange { seed: run.seed, before: was.crop_contacts, after: run.crop_contacts };
+        match run.crop_contacts.cmp(&was.crop_contacts) {
+            std::cmp::Ordering::Less => c.fewer.push(change),
+            std::cmp::Ordering::Greater => c.more.push(change),
+            std::cmp::Ordering::Equal => {}
+        }
+        c.ends_changed += usize::from(run.end != was.end);
+    }
+    c
 }
 
 /// What one worker made of one run.
@@ -96,12 +182,13 @@ thread_local! {
 }
 
 /// Runs the soak suite, every run's navigator changed by `sets` (`KEY=VALUE`, navigator keys).
-pub fn run(runs: u32, seed: u64, sets: &[String], out: &Path) -> Result<()> {
+pub fn run(runs: u32, seed: u64, sets: &[String], out: &Path, baseline: Option<&Path>) -> Result<()> {
     if runs == 0 || runs > MAX_RUNS {
         bail!("--runs must be in 1..={MAX_RUNS}");
     }
-    // A bad override is refused before any run, not reported once per seed.
+    // A bad override or baseline is refused before any run, not after an hour of them.
     case_of(seed, sets)?;
+    let before = baseline.map(load_baseline).transpose()?;
     fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let seeds: Vec<u64> = (0..u64::from(runs)).map(|k| seed.wrapping_add(k)).collect();
     let bar = ProgressBar::with_draw_target(Some(seeds.len() as u64), ProgressDrawTarget::stderr());
@@ -162,6 +249,7 @@ pub fn run(runs: u32, seed: u64, sets: &[String], out: &Path) -> Result<()> {
         ends: BTreeMap::new(),
         failures: Vec::new(),
         each: Vec::with_capacity(seeds.len()),
+        baseline: None,
     };
     for (&s, verdict) in seeds.iter().zip(verdicts) {
         let case = case_of(s, sets)?;
@@ -219,6 +307,7 @@ pub fn run(runs: u32, seed: u64, sets: &[String], out: &Path) -> Result<()> {
             });
         }
     }
+    report.baseline = baseline.zip(before.as_deref()).map(|(file, runs)| compare(file, runs, &report.each));
     let json = serde_json::to_string_pretty(&report)?;
     fs::write(out.join("soak.json"), json + "\n").context("writing soak.json")?;
     print_summary(&report, out);
@@ -309,5 +398,26 @@ fn print_summary(r: &Report, out: &Path) {
     for f in &r.failures {
         println!("  FAIL seed {}: {}\n    {}\n    replay: {}", f.seed, f.what, f.scenario, f.replay);
     }
+    if let Some(c) = &r.baseline {
+        print_comparison(c);
+    }
     println!("  wrote {}", out.join("soak.json").display());
+}
+
+fn print_comparison(c: &Comparison) {
+    let [p0, p1] = c.crop_contacts;
+    let [t0, t1] = c.runs_touching;
+    let [d0, d1] = c.done;
+    println!(
+        "  against {} ({} seeds in common): {p0} -> {p1} plants run over, {t0} -> {t1} runs touching plants, \
+         {d0} -> {d1} done, {} ends changed",
+        c.file, c.common_runs, c.ends_changed
+    );
+    let list = |changes: &[SeedChange]| {
+        let items: Vec<String> =
+            changes.iter().map(|s| format!("{} ({} -> {})", s.seed, s.before, s.after)).collect();
+        if items.is_empty() { "none".to_owned() } else { items.join(", ") }
+    };
+    println!("    fewer plants: {}", list(&c.fewer));
+    println!("    more plants: {}", list(&c.more));
 }
