@@ -355,9 +355,19 @@ impl Navigator {
             self.last_stamp_s.map_or(self.cfg.mpc.step_s, |t| (stamp_s - t).min(self.cfg.mpc.step_s));
         self.last_stamp_s = Some(stamp_s);
         self.switcher.set_time(stamp_s);
-        let guidance = self.switcher.update(&odom, detection.as_ref());
+        let mut guidance = self.switcher.update(&odom, detection.as_ref());
         if guidance.reset_detector {
             self.detector.reset();
+        }
+        // A drift of `odom` that registration measures past the limit: the map lags it (see
+        // `LaneSwitchConfig::max_slide_per_m`), so the robot stops rather than follow the lag.
+        let max_slide = self.cfg.lane_switch.max_slide_per_m;
+        if guidance.mode == Mode::Following
+            && max_slide > 0.0
+            && self.detector.slide_per_m().is_some_and(|k| k.abs() >= max_slide)
+        {
+            self.switcher.stop(StopReason::Sliding);
+            guidance.mode = self.switcher.mode();
         }
         self.learn_drift(guidance.mode, &odom, detection.as_ref());
         let mut out = NavOutput {

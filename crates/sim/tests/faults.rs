@@ -231,19 +231,45 @@ fn a_gap_across_every_row_is_taken_for_the_row_end_with_the_gap_rule_off() {
 fn a_wet_patch_with_slip_and_drift_keeps_tracking_with_a_lag() {
     // The drift is invisible to odometry, so the detector's centroid map (in odom) lags the truth:
     // measured 4.5 cm mean, 10.1 cm max with 2 cm/s of drift (docs/faults.md: more drift, more lag).
+    // Registration reads it at 0.05-0.06 m/m, under the slide stop's 0.1: it is driven through.
     assert_tracked(&drive(&scenario("slip-patch")), 6.0, 13.0);
 }
 
 #[test]
-fn a_gyro_bias_step_keeps_tracking_with_a_bias() {
+fn a_wet_patch_that_slides_past_the_limit_stops_the_robot() {
+    // 7 cm/s of drift with 30 % slip, a slide of 0.2 m per metre driven: registration reads it past
+    // `lane_switch.max_slide_per_m` (0.1) within a metre of the patch's start (x = 6 m): the robot
+    // stops (`sliding`, zero command) and waits for a person. Measured: stopped 0.8 m into the patch,
+    // 6.4 cm off at most.
+    let mut s = scenario("slip-patch");
+    s.faults.slip_patch.lateral_drift_m_s = 0.07;
+    let o = drive(&s);
+    assert_safe(&o);
+    assert_eq!(o.run.metrics.final_mode, Mode::Stopped { reason: StopReason::Sliding });
+    assert_eq!(o.stops.len(), 1, "{:?}", o.stops);
+    assert_eq!(o.resumes, 0);
+    let end = o.run.samples.last().map(|x| x.truth.x).unwrap_or(f64::NAN);
+    assert!(end > 6.0 && end < 8.0, "{end}");
+}
+
+#[test]
+fn a_gyro_bias_step_stops_the_robot_once_odom_slides_past_the_limit() {
     // The EKF learns the gyro bias at rest; while driving it trusts the wheels' yaw rate too little to
-    // follow a step, so odom turns 0.02 rad/s and bends the detector's centroid map: measured 8.1 cm
-    // mean, 13.0 cm max (docs/faults.md: a 0.05 rad/s step runs over plants).
-    // Canopy registration (on by default) reads the odometry's turn as a sideways drift, 1.5-2 cm a
-    // keyframe, and moves the lane with it: 4.4 cm mean, 16.6 cm max, still no contact (the nearest
-    // row line is 29 cm from a tyre of a centred robot). Without it the lane stays under 15 cm.
-    assert_tracked(&drive(&scenario("gyro-bias-step")), 10.0, 20.0);
+    // follow a step, so odom turns 0.02 rad/s and bends the detector's centroid map. Canopy
+    // registration reads the turn of odom as a sideways drift of 0.11-0.12 m/m, past
+    // `lane_switch.max_slide_per_m` (0.1): the robot stops (`sliding`) after the step at x = 6 m.
+    let o = drive(&scenario("gyro-bias-step"));
+    assert_safe(&o);
+    assert_eq!(o.run.metrics.final_mode, Mode::Stopped { reason: StopReason::Sliding });
+    assert_eq!((o.stops.len(), o.resumes), (1, 0), "{:?}", o.stops);
+    let end = o.run.samples.last().map(|x| x.truth.x).unwrap_or(f64::NAN);
+    assert!(end > 6.0 && end < 12.0, "{end}");
+    // With the stop off it keeps tracking with a bias: registration moves the lane with the drift it
+    // reads, 1.5-2 cm a keyframe: 4.4 cm mean, 16.6 cm max, no contact (the nearest row line is 29 cm
+    // from a tyre of a centred robot). Without registration the lane stays under 15 cm.
     let mut nav = closed_loop::sim_navigator();
+    nav.lane_switch.max_slide_per_m = 0.0;
+    assert_tracked(&drive_with(&scenario("gyro-bias-step"), nav.clone()), 10.0, 20.0);
     nav.detector.register_enabled = false;
     assert_tracked(&drive_with(&scenario("gyro-bias-step"), nav), 10.0, 15.0);
 }

@@ -21,6 +21,15 @@ fn provoke_then_guard(unguarded: &Case, guarded: &Case) -> Outcome {
     outcome
 }
 
+/// Runs `defaults` with the slide stop off (it must run over plants) and as it is (it must stop,
+/// `sliding`, clean).
+fn stopped_by_the_slide_stop(defaults: &Case) {
+    let mut unguarded = defaults.clone();
+    unguarded.navigator.lane_switch.max_slide_per_m = 0.0;
+    let outcome = provoke_then_guard(&unguarded, defaults);
+    assert_eq!(outcome.end.as_str(), "stopped: sliding", "{outcome:?}");
+}
+
 #[test]
 fn a_gyro_bias_step_while_following_is_learnt_at_an_opt_in_stand_mid_row() {
     // Grown soybean, a 0.027 rad/s gyro step 3.2 m into the first lane that the moving blocks missed:
@@ -60,8 +69,11 @@ fn a_gap_across_every_row_ahead_is_no_slide() {
     // them off the rows and the robot stops (`no_safe_motion`) instead of running over them.
     // The rule belongs to the slide test, off by default since session 28 (with it off the field is
     // done clean either way, measured): both runs have it on.
+    // Both runs also go without the slide stop (`lane_switch.max_slide_per_m`, on by default since
+    // session 30), which stops the robot at the false slide.
     let mut guarded = case(869, "grown corn 12.4 m x 6 rows 0.71 m");
     guarded.navigator.detector.shear_window_m = 0.5;
+    guarded.navigator.lane_switch.max_slide_per_m = 0.0;
     let mut unguarded = guarded.clone();
     unguarded.navigator.detector.shear_near_gap_m = 0.0;
     let before = run_case(&unguarded).expect("runs");
@@ -96,8 +108,11 @@ fn registration_with_an_end_fraction_leaves_out_the_bands_where_the_canopy_ends(
     // bands under 30 % of the fullest band's weight are left out.
     // Both runs have the slide test on, as when this was traced: with it off (the default since
     // session 28) the defaults drive the field clean (measured).
+    // Both go without the slide stop (`lane_switch.max_slide_per_m`, on by default since session 30),
+    // which stops the robot at the leaning drift.
     let mut unguarded = case(662, "young soybean 13.8 m x 5 rows 0.78 m");
     unguarded.navigator.detector.shear_window_m = 0.5;
+    unguarded.navigator.lane_switch.max_slide_per_m = 0.0;
     let mut guarded = unguarded.clone();
     guarded.navigator.detector.register_end_fraction = 0.3;
     let outcome = provoke_then_guard(&unguarded, &guarded);
@@ -113,10 +128,34 @@ fn a_wheel_slide_under_a_closed_canopy_is_registered_out_of_the_lane() {
     // drives it clean.
     // The slide's lane only: since the MPC places the tyres by the crabbing body, the defaults take 4
     // plants re-entering the second lane (a soak contact, not this slide).
-    let mut guarded = case(8, "grown corn 13.2 m");
-    guarded.run.lanes = 1;
+    // Registration drives it clean without the slide stop (`lane_switch.max_slide_per_m`, on by
+    // default since session 30); with the stop, the drift it reads stops the robot 2 m in, clean too.
+    let mut defaults = case(8, "grown corn 13.2 m");
+    defaults.run.lanes = 1;
+    let mut guarded = defaults.clone();
+    guarded.navigator.lane_switch.max_slide_per_m = 0.0;
     let mut unguarded = guarded.clone();
     unguarded.navigator.detector.register_enabled = false;
     let outcome = provoke_then_guard(&unguarded, &guarded);
     assert_eq!(outcome.end.as_str(), "done", "{outcome:?}");
+    let outcome = run_case(&defaults).expect("runs");
+    assert_eq!((outcome.crop_contacts, outcome.unsafe_commands), (0, 0), "{outcome:?}");
+    assert_eq!(outcome.end.as_str(), "stopped: sliding", "{outcome:?}");
+}
+
+#[test]
+fn a_wheel_slide_past_the_limit_stops_the_robot_before_the_crop() {
+    // Young soybean 0.73 m apart, 23 % slip and 7 cm/s sideways over x = 2.9-7.9 m: the row map,
+    // carried by the odometry, lagged the slide, and a tyre took 3 plants 3.2 m into the run.
+    // Registration reads the slide past `lane_switch.max_slide_per_m` (0.1) first: the robot stops,
+    // `sliding`, clear of the rows, and waits for a person.
+    stopped_by_the_slide_stop(&case(78, "young soybean 10.9 m x 8 rows 0.73 m"));
+}
+
+#[test]
+fn a_gyro_bias_step_that_slides_odom_past_the_limit_stops_the_robot_before_the_crop() {
+    // Grown soybean 0.71 m apart, a -0.014 rad/s gyro step at x = 2 m: odom turned, the row map
+    // bent with it and a tyre took 2 plants 11.3 m into the run. Registration reads the turn of odom
+    // as a sideways drift past `lane_switch.max_slide_per_m` (0.1): the robot stops, `sliding`.
+    stopped_by_the_slide_stop(&case(404, "grown soybean 14.1 m x 6 rows 0.71 m"));
 }

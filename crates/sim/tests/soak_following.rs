@@ -255,9 +255,13 @@ fn a_slide_too_strong_to_crab_against_in_a_narrow_lane_stops_the_robot() {
     // plans no motion, and the navigator stops the robot and says why instead of standing still
     // while "following". With the slide test off (the default since session 28) the robot takes 3
     // plants before it stops the same way (`no_safe_motion`, measured).
+    // Without the slide stop (`lane_switch.max_slide_per_m`, on by default since session 30): it stops
+    // the robot first, 1.5 m in, clean
+    // (`soak_follow_faults.rs` guards it).
     let mut case = with_slide_test(350);
     assert!(case.scenario.summary.starts_with("grown soybean 13.7 m x 10 rows 0.70 m apart"));
     case.run.lanes = 1;
+    case.navigator.lane_switch.max_slide_per_m = 0.0;
     let o = run_case(&case).expect("runs");
     assert_eq!((o.crop_contacts, o.unsafe_commands), (0, 0), "{o:?}");
     assert_eq!(o.end, "stopped: no_safe_motion", "{o:?}");

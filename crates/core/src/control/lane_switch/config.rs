@@ -218,6 +218,16 @@ pub struct LaneSwitchConfig {
     /// every row (337: 26°), a closed canopy's fit wandering at rest (439, 982: 19-21°). Such a lane
     /// resets the detector, which searches again, and the robot waits. Default 0.2 (11.5°).
     pub max_start_heading_rad: f64,
+    /// Largest sideways drift of `odom` against the canopy that the detector may measure while the
+    /// robot follows a lane, m per metre driven (canopy registration: a wheel slide on wet soil, or a
+    /// gyro bias the EKF has not learnt, whose turn of `odom` reads the same). At or past it the robot
+    /// stops (`sliding`) and waits for a person rather than drive on with a row map that lags the
+    /// slide: the lag grows a few centimetres per metre and a correction moves the lane 5 cm at once
+    /// (soak seed 350: a tyre on the row 1.3 m into a 7 cm/s slide). Default 0.1: in the 1000-run soak
+    /// it stopped 88 runs (39 wheel slides, 43 gyro bias steps, one run without faults) and took the
+    /// contacts from 93 plants in 26 runs to 58 in 14 (docs/faults.md, session 30); a 2 cm/s slide
+    /// (`fault-slip-patch`, read at 0.05-0.06) is driven through. 0 turns the stop off.
+    pub max_slide_per_m: f64,
 }
 
 impl Default for LaneSwitchConfig {
@@ -267,6 +277,7 @@ impl Default for LaneSwitchConfig {
             row_bias_stands: 0,
             following_spacing_tolerance: 0.15,
             max_start_heading_rad: 0.2,
+            max_slide_per_m: 0.1,
         }
     }
 }
@@ -310,6 +321,7 @@ impl LaneSwitchConfig {
         check_range("lane_switch.resume_rest_s", self.resume_rest_s, 0.0, 30.0)?;
         check_range("lane_switch.resume_rest_rad_per_m", self.resume_rest_rad_per_m, 1e-4, 1.0)?;
         check_range("lane_switch.max_start_heading_rad", self.max_start_heading_rad, 0.01, 1.0)?;
+        check_range("lane_switch.max_slide_per_m", self.max_slide_per_m, 0.0, 1.0)?;
         check_range("lane_switch.gap_margin_m", self.gap_margin_m, 0.0, 10.0)?;
         check_range(
             "lane_switch.gap_rows",

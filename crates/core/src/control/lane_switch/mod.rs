@@ -27,6 +27,7 @@
 //! Turning, at the first pivot: crop past the row end ─► Stopped { CropPastRowEnd }
 //! Following, ClearingRowEnd: the row end recedes with the robot ─► Stopped { RowEndReceding }
 //! Following: the MPC plans no forward motion for 2 s ─► Stopped { NoSafeMotion } (the navigator)
+//! Following: the detector measures `odom` sliding `max_slide_per_m` or more ─► Stopped { Sliding } (the navigator)
 //! ```
 //!
 //! # The headland turn and what is bounded
@@ -164,6 +165,10 @@ pub enum StopReason {
     /// (a sideways slide the body must crab against in a narrow lane); set by the caller. A person
     /// decides.
     NoSafeMotion,
+    /// While following, the detector measured `odom` drifting sideways against the canopy by
+    /// `max_slide_per_m` or more (a wheel slide, or an unlearnt gyro bias): the row map carried by the
+    /// odometry lags such a drift; set by the caller. A person decides.
+    Sliding,
 }
 
 impl StopReason {
@@ -187,6 +192,7 @@ impl StopReason {
             StopReason::CropPastRowEnd => "crop_past_row_end",
             StopReason::RowEndReceding => "row_end_receding",
             StopReason::NoSafeMotion => "no_safe_motion",
+            StopReason::Sliding => "sliding",
         }
     }
 }
