@@ -359,7 +359,7 @@ impl Navigator {
         if guidance.reset_detector {
             self.detector.reset();
         }
-        // A drift of `odom` that registration measures past the limit: the map lags it (see
+        // A drift of `odom` that the detector measures past the limit: the map lags it (see
         // `LaneSwitchConfig::max_slide_per_m`), so the robot stops rather than follow the lag.
         let max_slide = self.cfg.lane_switch.max_slide_per_m;
         if guidance.mode == Mode::Following

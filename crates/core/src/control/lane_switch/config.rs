@@ -223,10 +223,12 @@ pub struct LaneSwitchConfig {
     /// gyro bias the EKF has not learnt, whose turn of `odom` reads the same). At or past it the robot
     /// stops (`sliding`) and waits for a person rather than drive on with a row map that lags the
     /// slide: the lag grows a few centimetres per metre and a correction moves the lane 5 cm at once
-    /// (soak seed 350: a tyre on the row 1.3 m into a 7 cm/s slide). Default 0.1: in the 1000-run soak
-    /// it stopped 88 runs (39 wheel slides, 43 gyro bias steps, one run without faults) and took the
-    /// contacts from 93 plants in 26 runs to 58 in 14 (docs/faults.md, session 30); a 2 cm/s slide
-    /// (`fault-slip-patch`, read at 0.05-0.06) is driven through. 0 turns the stop off.
+    /// (soak seed 78: 3 plants with the stop off, none with it on). The reading is the detector's
+    /// (`RowDetector::slide_per_m`: registration's, or the opt-in slide test's). Default 0.1: in the
+    /// 1000-run soak it stopped 88 runs (39 with a wheel slide, 43 with a gyro bias step, 5 with other
+    /// faults, one without any) and took the contacts from 93 plants in 26 runs to 58 in 14
+    /// (docs/faults.md, session 30); a 2 cm/s slide (`fault-slip-patch`, read at 0.05-0.06) is driven
+    /// through. 0 turns the stop off.
     pub max_slide_per_m: f64,
 }
 

@@ -1696,6 +1696,15 @@ mod tests {
     }
 
     #[test]
+    fn a_slide_limit_out_of_range_is_refused() {
+        for bad in [-0.1, 1.5, f64::NAN, f64::INFINITY] {
+            let cfg = LaneSwitchConfig { max_slide_per_m: bad, ..LaneSwitchConfig::default() };
+            assert!(cfg.validate().unwrap_err().to_string().contains("lane_switch.max_slide_per_m"), "{bad}");
+        }
+        LaneSwitchConfig { max_slide_per_m: 0.0, ..LaneSwitchConfig::default() }.validate().unwrap();
+    }
+
+    #[test]
     fn more_lanes_than_the_field_has_are_refused() {
         let cfg = LaneSwitchConfig { field_lanes: 8, start_lane: 3, lanes: 6, ..LaneSwitchConfig::default() };
         assert!(cfg.validate().unwrap_err().to_string().contains("lane_switch.lanes"));
