@@ -282,19 +282,27 @@ fn a_pivot_turn_stands_still_while_turning_and_brakes_into_each_corner() {
     assert!(g.reset_detector);
 }
 
-#[test]
-fn entering_a_lane_that_is_not_the_planned_one_stops() {
+/// Follows the first lane of `field()` to its end and walks the robot through the turn; returns the
+/// switcher, now `entering`, and the pose where the entry began.
+fn at_next_lane_entry(cfg: LaneSwitchConfig) -> (LaneSwitcher, Pose2) {
     let f = field();
-    let mut sw = switcher(LaneSwitchConfig::default());
+    let mut sw = switcher(cfg);
     let mut pose = lane_start(0);
     sw.update(&pose, Some(&f.detect(0.0, &pose)));
     while sw.mode() != Mode::Turning {
         pose.x += 0.05;
         sw.update(&pose, Some(&f.detect(0.0, &pose)));
     }
-    // Walk the robot through the turn, then show it rows centred half a lane off the plan.
     let at_entry = walk_turn(&mut sw);
     assert_eq!(sw.mode(), Mode::Entering);
+    (sw, at_entry)
+}
+
+#[test]
+fn entering_a_lane_that_is_not_the_planned_one_stops() {
+    let f = field();
+    // Walk the robot through the turn, then show it rows centred half a lane off the plan.
+    let (mut sw, at_entry) = at_next_lane_entry(LaneSwitchConfig::default());
     // 0.3 m off: the rows then imply a centre line beyond the 0.25 m tolerance.
     let shifted = Pose2::new(at_entry.x, at_entry.y + 0.3, at_entry.yaw);
     for i in 0..3 {
@@ -335,4 +343,67 @@ fn rows_lost_close_to_a_seen_row_end_are_expected() {
     sw.update(&pose, Some(&f.detect(0.0, &pose)));
     let g = sw.update(&pose, Some(&Detection { row_end_ahead_m: Some(8.0), ..lost }));
     assert_eq!(g.mode, Mode::Stopped { reason: StopReason::RowsLost });
+}
+
+/// Turns into the next lane of `field()`, then walks the robot 5 cm a step along the new lane's
+/// centre line (or `aside_m` to its left) while its rows read turned by `rate` rad per metre from
+/// `from_m` past the entry on (as if a fit took up a turn: the rows rotate about the robot). Returns
+/// the mode after `to_m` (or at a stop), the distance walked and where the switcher first asked the
+/// detector to search again.
+fn enter_with_rows_turning(
+    cfg: LaneSwitchConfig,
+    aside_m: f64,
+    rate: f64,
+    from_m: f64,
+    to_m: f64,
+) -> (Mode, f64, Option<f64>) {
+    let f = field();
+    let (mut sw, at_entry) = at_next_lane_entry(cfg);
+    let mut walked = 0.0;
+    let mut first_search = None;
+    while walked < to_m {
+        let pose = Pose2::new(at_entry.x - walked, at_entry.y - aside_m, at_entry.yaw);
+        let turned = rate * (walked - from_m).max(0.0);
+        let seen_from = Pose2::new(pose.x, pose.y, pose.yaw - turned);
+        let g = sw.update(&pose, Some(&f.detect(walked, &seen_from)));
+        if g.reset_detector && first_search.is_none() {
+            first_search = Some(walked);
+        }
+        if matches!(g.mode, Mode::Stopped { .. }) {
+            return (g.mode, walked, first_search);
+        }
+        walked += 0.05;
+    }
+    (sw.mode(), walked, first_search)
+}
+
+#[test]
+fn rows_turning_off_the_planned_lane_while_entering_are_searched_again() {
+    // The robot walks 15 cm beside the entry line, so it stays `entering` (not aligned), while the
+    // rows turn 0.2 rad/m from its first scan of the new lane: each scan agrees with the last, but
+    // from 0.75 m on they run 0.15 rad off the lane planned from the last one (soak seed 765's
+    // entry, which then took 13 plants). Those are a fit that took up a turn: the switcher asks the
+    // detector to search again, and neither enters on them nor calls them another lane.
+    let entry = |rate| enter_with_rows_turning(LaneSwitchConfig::default(), 0.15, rate, 0.0, 1.0);
+    let (mode, _, first_search) = entry(0.2);
+    assert_eq!(mode, Mode::Entering);
+    let first = first_search.expect("a search");
+    assert!((0.75..=0.85).contains(&first), "searched again from {first:.2} m");
+    // Straight rows: no search.
+    assert_eq!(entry(0.0).2, None);
+}
+
+#[test]
+fn rows_turning_just_after_the_entry_stop_the_robot_within_the_watch() {
+    let turned_after_entry = |cfg| enter_with_rows_turning(cfg, 0.0, 0.2, 0.5, 4.0);
+    // Confirmed on straight rows, then 0.15 rad off by 1.25 m: inside the 2 m watch.
+    let (mode, walked, _) = turned_after_entry(LaneSwitchConfig::default());
+    assert_eq!(mode, Mode::Stopped { reason: StopReason::WrongLane });
+    assert!((1.25..=1.35).contains(&walked), "stopped after {walked:.2} m");
+    // Without the watch the same rows are followed.
+    let off = LaneSwitchConfig { entry_heading_watch_m: 0.0, ..LaneSwitchConfig::default() };
+    assert_eq!(turned_after_entry(off).0, Mode::Following);
+    // Rows that turn once the watch is over (curved rows further in) are followed too.
+    let (mode, ..) = enter_with_rows_turning(LaneSwitchConfig::default(), 0.0, 0.2, 2.5, 4.0);
+    assert_eq!(mode, Mode::Following);
 }

@@ -230,6 +230,18 @@ pub struct LaneSwitchConfig {
     /// (docs/faults.md, session 30); a 2 cm/s slide (`fault-slip-patch`, read at 0.05-0.06) is driven
     /// through. 0 turns the stop off.
     pub max_slide_per_m: f64,
+    /// The planned direction holds a new lane's rows while the robot enters it and for this distance
+    /// followed, m: the rows seen must run within `entry_heading_tolerance_rad` of the turned-at
+    /// lane's rows at its end, reversed (`odom`; the rows are parallel). A fit that turns a little
+    /// from scan to scan passes a comparison with the scan before: in a closed canopy the lattice is
+    /// weakly held sideways, and a fit that took up a turn on entry was followed across two rows (soak
+    /// seed 765, fault-free grown corn: 0.18 rad off at the first scan followed, 13 plants). While
+    /// entering, rows off the planned direction ask the detector to search again and do not count for
+    /// or against the lane (the robot drives on; the entry limits still stop it); once following, they
+    /// stop the robot (`wrong_lane`). Rows that curve by more than the tolerance within this distance
+    /// of the headland, or a heading the odometry lost in the turn (an unlearnt gyro bias step), are
+    /// refused too. Default 2; 0 turns the hold off (the entry compares each scan with the last only).
+    pub entry_heading_watch_m: f64,
 }
 
 impl Default for LaneSwitchConfig {
@@ -280,6 +292,7 @@ impl Default for LaneSwitchConfig {
             following_spacing_tolerance: 0.15,
             max_start_heading_rad: 0.2,
             max_slide_per_m: 0.1,
+            entry_heading_watch_m: 2.0,
         }
     }
 }
@@ -324,6 +337,7 @@ impl LaneSwitchConfig {
         check_range("lane_switch.resume_rest_rad_per_m", self.resume_rest_rad_per_m, 1e-4, 1.0)?;
         check_range("lane_switch.max_start_heading_rad", self.max_start_heading_rad, 0.01, 1.0)?;
         check_range("lane_switch.max_slide_per_m", self.max_slide_per_m, 0.0, 1.0)?;
+        check_range("lane_switch.entry_heading_watch_m", self.entry_heading_watch_m, 0.0, 1000.0)?;
         check_range("lane_switch.gap_margin_m", self.gap_margin_m, 0.0, 10.0)?;
         check_range(
             "lane_switch.gap_rows",

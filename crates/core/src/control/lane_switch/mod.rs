@@ -308,6 +308,9 @@ pub struct LaneSwitcher {
     entry_row_end_m: f64,
     /// True once a detection agreed with the planned lane and the entry follows the rows seen.
     entry_anchored: bool,
+    /// The planned direction of the new lane's rows (`odom`, rad: the turned-at lane's, reversed) and,
+    /// once it is followed, the odometer reading where that began: see `entry_heading_watch_m`.
+    entry_heading: Option<(f64, Option<f64>)>,
     /// Consecutive scans that showed crop past the row end (see `gap_confirmations`).
     crop_past_end: u32,
     /// The near edge of that crop past the end and where the robot was, m along past the end, at the
@@ -381,6 +384,7 @@ impl LaneSwitcher {
             pivots: None,
             entry_row_end_m: 0.0,
             entry_anchored: false,
+            entry_heading: None,
             crop_past_end: 0,
             gap_seen_from: None,
             end_anchor: None,
@@ -615,6 +619,8 @@ impl LaneSwitcher {
         if matches!(self.mode, Mode::Stopped { .. }) {
             self.reference.reset();
             self.blind_m = 0.0;
+            // A person decided: the lane is theirs, whatever its direction.
+            self.entry_heading = None;
             self.mode = Mode::Acquiring;
         }
     }
@@ -733,7 +739,7 @@ impl LaneSwitcher {
                     reset_detector = true;
                 }
             }
-            Mode::Entering => self.enter(odom, detection),
+            Mode::Entering => reset_detector = self.enter(odom, detection),
             Mode::Stopped { reason } if reason.clears_by_itself() && self.cfg.resume_confirmations > 0 => {
                 self.recover(odom, detection, travelled);
             }
@@ -909,8 +915,35 @@ impl LaneSwitcher {
         }
     }
 
+    /// True when rows with direction `yaw` (`odom`) run within `entry_heading_tolerance_rad` of the
+    /// planned new lane's, or no lane is planned.
+    fn on_planned_heading(&self, yaw: f64) -> bool {
+        self.entry_heading.is_none_or(|(planned, _)| {
+            wrap_angle(yaw - planned).abs() <= self.cfg.entry_heading_tolerance_rad
+        })
+    }
+
+    /// The watch of `entry_heading_watch_m`: false when the rows followed since the lane was entered
+    /// turned off its planned direction. The watch ends once the robot followed that far.
+    fn entry_heading_held(&mut self, saw_rows: bool) -> bool {
+        let Some((_, Some(since_m))) = self.entry_heading else { return true };
+        if self.odometer_m - since_m > self.cfg.entry_heading_watch_m {
+            self.entry_heading = None;
+            return true;
+        }
+        match self.reference.path().filter(|_| saw_rows) {
+            Some(path) => self.on_planned_heading(path.pose_at(self.s_hint_m).yaw),
+            None => true,
+        }
+    }
+
     fn enter_following(&mut self, odom: &Pose2) {
         self.mode = Mode::Following;
+        // The watch starts where the new lane is first followed (a stop and resume inside it keeps it).
+        self.entry_heading = match self.entry_heading {
+            Some((planned, None)) => Some((planned, Some(self.odometer_m))),
+            kept => kept,
+        };
         self.blind_m = 0.0;
         self.resume_agree = 0;
         self.stop_rest_since_s = None;
@@ -960,6 +993,10 @@ impl LaneSwitcher {
             self.s_hint_m = path.project(odom, self.s_hint_m).s_m;
         }
         self.watch_row_heading(travelled, saw_rows);
+        if !self.entry_heading_held(saw_rows) {
+            self.mode = Mode::Stopped { reason: StopReason::WrongLane };
+            return;
+        }
         if self.bias_suspect
             && self.dwell == Dwell::Off
             && self.bias_stands_left > 0
@@ -1135,6 +1172,8 @@ impl LaneSwitcher {
         self.s_hint_m = 0.0;
         self.turn_index = self.turn_index.wrapping_add(1);
         self.exit_line = Some(*end);
+        self.entry_heading =
+            (self.cfg.entry_heading_watch_m > 0.0).then_some((wrap_angle(end.yaw + PI), None));
         self.row_end = None;
     }
 
@@ -1154,13 +1193,20 @@ impl LaneSwitcher {
         self.entry_anchored = true;
     }
 
-    fn enter(&mut self, odom: &Pose2, detection: Option<&Detection>) {
+    fn enter(&mut self, odom: &Pose2, detection: Option<&Detection>) -> bool {
         let f = self.turn.project(odom, self.s_hint_m);
         self.s_hint_m = f.s_m;
-        let Some(entry) = self.turn.segments().last().copied() else { return };
+        let Some(entry) = self.turn.segments().last().copied() else { return false };
+        let mut search_again = false;
         if let Some(d) = detection
             && matches!(d.status, RowStatus::Tracking | RowStatus::EndOfRow)
             && let Some(line) = self.reference.centre_line(d)
+            && {
+                // Rows off the planned direction are a fit that took up a turn, not another lane:
+                // the detector searches afresh while the robot drives on.
+                search_again = !self.on_planned_heading(odom.yaw + line.heading_rad);
+                !search_again
+            }
         {
             let c = odom.compose(&line.pose());
             let (_, lateral) = {
@@ -1183,11 +1229,11 @@ impl LaneSwitcher {
             if self.agree >= self.cfg.entry_confirmations && aligned && self.reference.update(d, odom) {
                 self.lane = self.lane.saturating_add(self.cfg.lane_step);
                 self.enter_following(odom);
-                return;
+                return false;
             }
             if self.disagree >= self.cfg.entry_confirmations {
                 self.mode = Mode::Stopped { reason: StopReason::WrongLane };
-                return;
+                return false;
             }
         }
         if let Some(end) = self.exit_line {
@@ -1201,6 +1247,10 @@ impl LaneSwitcher {
                 self.mode = Mode::Stopped { reason: StopReason::ReentryNotConfirmed };
             }
         }
+        if search_again {
+            self.agree = 0;
+        }
+        search_again
     }
 }
 
@@ -1702,6 +1752,16 @@ mod tests {
             assert!(cfg.validate().unwrap_err().to_string().contains("lane_switch.max_slide_per_m"), "{bad}");
         }
         LaneSwitchConfig { max_slide_per_m: 0.0, ..LaneSwitchConfig::default() }.validate().unwrap();
+    }
+
+    #[test]
+    fn an_entry_heading_watch_out_of_range_is_refused() {
+        for bad in [-1.0, 2000.0, f64::NAN, f64::INFINITY] {
+            let cfg = LaneSwitchConfig { entry_heading_watch_m: bad, ..LaneSwitchConfig::default() };
+            let err = cfg.validate().unwrap_err().to_string();
+            assert!(err.contains("lane_switch.entry_heading_watch_m"), "{bad}: {err}");
+        }
+        LaneSwitchConfig { entry_heading_watch_m: 0.0, ..LaneSwitchConfig::default() }.validate().unwrap();
     }
 
     #[test]
