@@ -55,9 +55,19 @@ fn a_fault_free_grown_soybean_field_edge_is_not_run_over() {
 fn tall_weeds_in_view_after_a_headland_turn_do_not_pull_the_fit() {
     // Young corn with 0.5 m weeds (taller than the crop) over x = 7-9.3 m: re-acquired after the
     // first turn with the patch in view, the fit took the weed clumps reaching into the rows' gates
-    // and turned 6-10° off the rows (6 contacts).
-    let o = run_seed(50, "young corn 10.2 m x 7 rows 0.78 m");
+    // and turned 6-10° off the rows (6 contacts). Both runs go without the entry's heading watch
+    // (`lane_switch.entry_heading_watch_m`, on by default since session 31), which stops this robot
+    // first, 0.1 m after the lane is confirmed, rows 0.15 rad off the lane before (asserted below).
+    let unwatched = |c: &mut Case, core_fraction| {
+        c.navigator.detector.core_fraction = core_fraction;
+        c.navigator.lane_switch.entry_heading_watch_m = 0.0;
+    };
+    let summary = "young corn 10.2 m x 7 rows 0.78 m";
+    let o = run_guarded(50, summary, |c| unwatched(c, 0.0), |c| unwatched(c, 0.1));
     assert_eq!((o.crop_contacts, o.unsafe_commands), (0, 0), "{o:?}");
+    let o = run_case(&soak_case(50)).expect("runs");
+    assert_eq!((o.crop_contacts, o.unsafe_commands), (0, 0), "{o:?}");
+    assert_eq!(o.end, "stopped: wrong_lane", "{o:?}");
 }
 
 #[test]
