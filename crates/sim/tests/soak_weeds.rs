@@ -24,16 +24,6 @@ fn run_guarded(seed: u64, summary: &str, unguard: impl Fn(&mut Case), guard: imp
     run_case(&guarded).expect("runs")
 }
 
-/// [`run_guarded`] with every bin kept (`core_fraction` = 0, the default) and with `core_fraction` = 0.1.
-fn run_seed(seed: u64, summary: &str) -> Outcome {
-    run_guarded(
-        seed,
-        summary,
-        |c| c.navigator.detector.core_fraction = 0.0,
-        |c| c.navigator.detector.core_fraction = 0.1,
-    )
-}
-
 #[test]
 fn a_fault_free_grown_soybean_field_edge_is_not_run_over() {
     // Fault-free grown soybean, 4 rows: in the 1000-run soak, re-entering the field after the first
