@@ -1197,16 +1197,15 @@ impl LaneSwitcher {
         let f = self.turn.project(odom, self.s_hint_m);
         self.s_hint_m = f.s_m;
         let Some(entry) = self.turn.segments().last().copied() else { return false };
-        let mut search_again = false;
-        if let Some(d) = detection
-            && matches!(d.status, RowStatus::Tracking | RowStatus::EndOfRow)
+        let seen = detection.filter(|d| matches!(d.status, RowStatus::Tracking | RowStatus::EndOfRow));
+        // Rows off the planned direction are a fit that took up a turn, not another lane: they count
+        // neither way, and the detector searches afresh while the robot drives on.
+        let search_again = seen
+            .and_then(|d| self.reference.centre_line(d))
+            .is_some_and(|line| !self.on_planned_heading(odom.yaw + line.heading_rad));
+        if !search_again
+            && let Some(d) = seen
             && let Some(line) = self.reference.centre_line(d)
-            && {
-                // Rows off the planned direction are a fit that took up a turn, not another lane:
-                // the detector searches afresh while the robot drives on.
-                search_again = !self.on_planned_heading(odom.yaw + line.heading_rad);
-                !search_again
-            }
         {
             let c = odom.compose(&line.pose());
             let (_, lateral) = {
