@@ -150,6 +150,10 @@ pub struct NavOutput {
     pub input_fault: Option<InputFault>,
 }
 
+/// Yaw rate allowed at any speed while following, rad/s, on top of `max_following_curvature_per_m`
+/// times the speed: enough to hold a heading at a standstill, far from a pivot.
+const FOLLOWING_YAW_RATE_FLOOR_RADPS: f64 = 0.02;
+
 /// While following at a cruise speed of at least `STALL_CRUISE_MPS`, an MPC that plans under
 /// `STALL_SPEED_MPS` for `STALL_S` has found every way on worse than standing: the corridor cost says a
 /// tyre would cross a row (measured: soak seed 350, a 0.2 m/m slide in grown soybean 0.70 m apart,
@@ -405,6 +409,13 @@ impl Navigator {
                     // (the rate limit below still wins).
                     let brake = (self.cfg.mpc.yaw_accel_max_radps2 * frenet.heading_rad.abs()).sqrt();
                     omega = omega.clamp(-brake, brake);
+                }
+                let max_curvature = self.cfg.lane_switch.max_following_curvature_per_m;
+                if guidance.mode == Mode::Following && max_curvature > 0.0 {
+                    // Rows are followed along arcs, never by turning on the spot (see the field's
+                    // docs); the arc is the MPC's planned speed's, before the rate limits.
+                    let bound = max_curvature * sol.cmd.v.abs() + FOLLOWING_YAW_RATE_FLOOR_RADPS;
+                    omega = omega.clamp(-bound, bound);
                 }
                 let omega = omega.clamp(self.last_cmd.omega - dw, self.last_cmd.omega + dw);
                 out.cmd = Twist2::new(sol.cmd.v.clamp(self.last_cmd.v - dv, self.last_cmd.v + dv), omega);

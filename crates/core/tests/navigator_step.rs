@@ -144,3 +144,40 @@ fn drives_two_lanes_and_stops_done() {
     assert_eq!((sw.lanes_completed(), sw.lane()), (2, 1));
     assert!(sw.max_excursion_m() <= 1.5, "excursion {}", sw.max_excursion_m());
 }
+
+/// Largest yaw rate commanded while following from the recovery start (0.3 m and 8° off the lane
+/// centre), rad/s, with `max_following_curvature_per_m` set to `max_curvature`.
+fn max_following_yaw_rate(max_curvature: f64) -> f64 {
+    let field = Field { rows: 4, length_m: 20.0, blackout: None };
+    let cfg = NavigatorConfig {
+        lane_switch: LaneSwitchConfig {
+            max_following_curvature_per_m: max_curvature,
+            ..LaneSwitchConfig::default()
+        },
+        ..NavigatorConfig::default()
+    };
+    let mut nav = Navigator::new(cfg).unwrap();
+    let control_dt = PERIOD_S / 5.0;
+    let mut pose = Pose2::new(0.5, lane_start(0).y + 0.3, (-8f64).to_radians());
+    let mut max_omega: f64 = 0.0;
+    for i in 0..(10.0 / control_dt) as usize {
+        let t = i as f64 * control_dt;
+        let det = (i % 5 == 0).then(|| field.detect(t, &pose));
+        let out = nav.step_with_detection(t, pose, Twist2::ZERO, det, None);
+        if out.mode == Mode::Following {
+            max_omega = max_omega.max(out.cmd.omega.abs());
+        }
+        pose = drive(pose, out.cmd, control_dt);
+    }
+    max_omega
+}
+
+#[test]
+fn following_turns_along_arcs_not_on_the_spot() {
+    // The bound is the curvature times the MPC's planned speed (at most `speed_max_mps`, 1 m/s) plus
+    // 0.02 rad/s; without it the same start swings the robot faster.
+    let bounded = max_following_yaw_rate(0.1);
+    assert!(bounded <= 0.1 * 1.0 + 0.02 + 1e-9, "{bounded} rad/s");
+    let free = max_following_yaw_rate(0.0);
+    assert!(free > 0.15, "{free} rad/s: the start no longer tests the bound");
+}

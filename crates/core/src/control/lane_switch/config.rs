@@ -230,6 +230,17 @@ pub struct LaneSwitchConfig {
     /// (docs/faults.md, session 30); a 2 cm/s slide (`fault-slip-patch`, read at 0.05-0.06) is driven
     /// through. 0 turns the stop off.
     pub max_slide_per_m: f64,
+    /// Tightest turn while following rows, 1/m: the navigator holds the command's yaw rate within
+    /// this times the forward speed the MPC plans (its first step's, before the acceleration limit),
+    /// plus 0.02 rad/s. Rows bend gently (the paper's curved field at most 0.024 1/m), yet a robot just
+    /// set down, or one whose lattice jumped, was swung 13-23° towards a fresh lattice before it had
+    /// rolled a metre, which turned the view the detector tracks (soak seed 1390, fault-free grown
+    /// corn: a 0.23 rad swing at the start, then the whole lane 14-23 cm off the centre line). Default
+    /// 0 (off): at 0.5 the soak's seeds 1000-1999 ran over 36 plants instead of 86, but seeds 0-999
+    /// 46 instead of 39 (fault-free 765: 0 -> 5), as many runs touched plants over the 2000 (24),
+    /// 24 fewer were done, and the `recovery` start (0.3 m, 8° off) ran over 12 plants instead of 9
+    /// (docs/faults.md, session 32).
+    pub max_following_curvature_per_m: f64,
     /// The planned direction holds a new lane's rows while the robot enters it and for this distance
     /// followed, m: the rows seen must run within `entry_heading_tolerance_rad` of the turned-at
     /// lane's rows at its end, reversed (`odom`; the rows are parallel). A fit that turns a little
@@ -292,6 +303,7 @@ impl Default for LaneSwitchConfig {
             following_spacing_tolerance: 0.15,
             max_start_heading_rad: 0.2,
             max_slide_per_m: 0.1,
+            max_following_curvature_per_m: 0.0,
             entry_heading_watch_m: 2.0,
         }
     }
@@ -337,6 +349,12 @@ impl LaneSwitchConfig {
         check_range("lane_switch.resume_rest_rad_per_m", self.resume_rest_rad_per_m, 1e-4, 1.0)?;
         check_range("lane_switch.max_start_heading_rad", self.max_start_heading_rad, 0.01, 1.0)?;
         check_range("lane_switch.max_slide_per_m", self.max_slide_per_m, 0.0, 1.0)?;
+        check_range(
+            "lane_switch.max_following_curvature_per_m",
+            self.max_following_curvature_per_m,
+            0.0,
+            100.0,
+        )?;
         check_range("lane_switch.entry_heading_watch_m", self.entry_heading_watch_m, 0.0, 1000.0)?;
         check_range("lane_switch.gap_margin_m", self.gap_margin_m, 0.0, 10.0)?;
         check_range(

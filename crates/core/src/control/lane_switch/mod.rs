@@ -1764,6 +1764,18 @@ mod tests {
     }
 
     #[test]
+    fn a_following_curvature_out_of_range_is_refused() {
+        for bad in [-0.1, 101.0, f64::NAN, f64::INFINITY] {
+            let cfg = LaneSwitchConfig { max_following_curvature_per_m: bad, ..LaneSwitchConfig::default() };
+            let err = cfg.validate().unwrap_err().to_string();
+            assert!(err.contains("lane_switch.max_following_curvature_per_m"), "{bad}: {err}");
+        }
+        LaneSwitchConfig { max_following_curvature_per_m: 0.5, ..LaneSwitchConfig::default() }
+            .validate()
+            .unwrap();
+    }
+
+    #[test]
     fn more_lanes_than_the_field_has_are_refused() {
         let cfg = LaneSwitchConfig { field_lanes: 8, start_lane: 3, lanes: 6, ..LaneSwitchConfig::default() };
         assert!(cfg.validate().unwrap_err().to_string().contains("lane_switch.lanes"));
