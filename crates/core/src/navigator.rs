@@ -412,8 +412,9 @@ impl Navigator {
                 }
                 let max_curvature = self.cfg.lane_switch.max_following_curvature_per_m;
                 if guidance.mode == Mode::Following && max_curvature > 0.0 {
-                    // Rows are followed along arcs, never by turning on the spot (see the field's
-                    // docs); the arc is the MPC's planned speed's, before the rate limits.
+                    // Rows are followed along arcs, not by turning on the spot (see
+                    // `LaneSwitchConfig::max_following_curvature_per_m`); the arc is at the MPC's planned
+                    // speed, before the rate limits.
                     let bound = max_curvature * sol.cmd.v.abs() + FOLLOWING_YAW_RATE_FLOOR_RADPS;
                     omega = omega.clamp(-bound, bound);
                 }
