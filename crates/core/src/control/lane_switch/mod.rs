@@ -1744,35 +1744,48 @@ mod tests {
         assert!(cfg.validate().unwrap_err().to_string().contains("lane_switch.turn_radius_m"));
     }
 
+    /// Asserts that each of `bad` set by `set` is refused naming `field`, and that `good` is taken.
+    fn assert_range_checked(field: &str, set: fn(&mut LaneSwitchConfig, f64), bad: &[f64], good: f64) {
+        let with = |v: f64| {
+            let mut cfg = LaneSwitchConfig::default();
+            set(&mut cfg, v);
+            cfg
+        };
+        for &v in bad {
+            let err = with(v).validate().unwrap_err().to_string();
+            assert!(err.contains(field), "{v}: {err}");
+        }
+        with(good).validate().unwrap();
+    }
+
     #[test]
     fn a_slide_limit_out_of_range_is_refused() {
-        for bad in [-0.1, 1.5, f64::NAN, f64::INFINITY] {
-            let cfg = LaneSwitchConfig { max_slide_per_m: bad, ..LaneSwitchConfig::default() };
-            assert!(cfg.validate().unwrap_err().to_string().contains("lane_switch.max_slide_per_m"), "{bad}");
-        }
-        LaneSwitchConfig { max_slide_per_m: 0.0, ..LaneSwitchConfig::default() }.validate().unwrap();
+        assert_range_checked(
+            "lane_switch.max_slide_per_m",
+            |c, v| c.max_slide_per_m = v,
+            &[-0.1, 1.5, f64::NAN, f64::INFINITY],
+            0.0,
+        );
     }
 
     #[test]
     fn an_entry_heading_watch_out_of_range_is_refused() {
-        for bad in [-1.0, 2000.0, f64::NAN, f64::INFINITY] {
-            let cfg = LaneSwitchConfig { entry_heading_watch_m: bad, ..LaneSwitchConfig::default() };
-            let err = cfg.validate().unwrap_err().to_string();
-            assert!(err.contains("lane_switch.entry_heading_watch_m"), "{bad}: {err}");
-        }
-        LaneSwitchConfig { entry_heading_watch_m: 0.0, ..LaneSwitchConfig::default() }.validate().unwrap();
+        assert_range_checked(
+            "lane_switch.entry_heading_watch_m",
+            |c, v| c.entry_heading_watch_m = v,
+            &[-1.0, 2000.0, f64::NAN, f64::INFINITY],
+            0.0,
+        );
     }
 
     #[test]
     fn a_following_curvature_out_of_range_is_refused() {
-        for bad in [-0.1, 101.0, f64::NAN, f64::INFINITY] {
-            let cfg = LaneSwitchConfig { max_following_curvature_per_m: bad, ..LaneSwitchConfig::default() };
-            let err = cfg.validate().unwrap_err().to_string();
-            assert!(err.contains("lane_switch.max_following_curvature_per_m"), "{bad}: {err}");
-        }
-        LaneSwitchConfig { max_following_curvature_per_m: 0.5, ..LaneSwitchConfig::default() }
-            .validate()
-            .unwrap();
+        assert_range_checked(
+            "lane_switch.max_following_curvature_per_m",
+            |c, v| c.max_following_curvature_per_m = v,
+            &[-0.1, 101.0, f64::NAN, f64::INFINITY],
+            0.5,
+        );
     }
 
     #[test]
