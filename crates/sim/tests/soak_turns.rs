@@ -113,11 +113,14 @@ fn a_row_end_seen_through_a_missing_scan_sector_does_not_turn_into_the_crop() {
     // Young soybean, a 119° sector of the scan missing over x = 2.8-5.7 m: the rows' far part
     // vanished with it and the canopy seemed to end; the turn started there, in the field (9 plants).
     // With the gap rule the crop shows again at the first pivot and the robot stops there (a variant
-    // of the levelling saw the crop past the sector in time and finished the mission). Either is safe
-    // (`safe_run_with_gap_rule` asserts no contact); turning into the crop is not.
+    // of the levelling saw the crop past the sector in time and finished the mission). Since the
+    // detector knows the sector for a hole (`detector.hold_scan_holes`, session 33) the robot stops as
+    // soon as the hole hides the lane's rows and the map runs short ahead (`rows_lost`, 2.9 m in).
+    // Each is safe (`safe_run_with_gap_rule` asserts no contact); turning into the crop is not.
     let o = safe_run_with_gap_rule(646, "young soybean 13.9 m x 7 rows 0.76 m apart");
     let done = (o.end.as_str(), o.lanes_completed) == ("done", 2);
-    assert!(done || o.end == "stopped: crop_past_row_end", "{o:?}");
+    let stopped = ["stopped: crop_past_row_end", "stopped: rows_lost"].contains(&o.end.as_str());
+    assert!(done || stopped, "{o:?}");
 }
 
 #[test]

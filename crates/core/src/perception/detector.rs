@@ -235,6 +235,7 @@ impl RowDetector {
         let out = self.lanes.step(
             &self.pre.canopy,
             &self.pre.cropped,
+            &self.pre.holes,
             &nav,
             t,
             &self.config,

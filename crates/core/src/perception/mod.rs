@@ -27,6 +27,7 @@ use serde::{Deserialize, Serialize};
 mod config;
 mod deskew;
 mod detector;
+mod holes;
 mod interleave;
 mod lanes;
 mod level;

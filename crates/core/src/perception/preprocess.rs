@@ -17,6 +17,7 @@ use crate::geometry::{Mount, Point3};
 
 use super::config::DetectorConfig;
 use super::deskew::Deskew;
+use super::holes::Holes;
 use super::interleave::for_each_interleaved;
 use super::level::Level;
 
@@ -221,6 +222,8 @@ pub(crate) struct Preprocessor {
     pub(crate) plane_z_m: f32,
     /// The levelling stage and its estimate (default mode).
     pub(crate) level: Level,
+    /// Sectors of the last scan with no return (default mode, `hold_scan_holes`).
+    pub(crate) holes: Holes,
     z_hist: Vec<u32>,
     clutter: Clutter,
 }
@@ -232,6 +235,7 @@ impl Preprocessor {
             canopy: Vec::with_capacity(capacity),
             plane_z_m: 0.0,
             level: Level::new(config),
+            holes: Holes::default(),
             z_hist: vec![0; Z_BINS],
             clutter: Clutter::new(),
         }
@@ -281,6 +285,12 @@ impl Preprocessor {
             });
             self.cropped.truncate(len + usize::from(kept));
         }
+        self.holes.begin(mount);
+        if rule == PlaneRule::Percentile && config.hold_scan_holes {
+            // A pass of its own: the crop's loop above stays branch-free.
+            self.holes.count(points);
+            self.holes.finish();
+        }
         if rule == PlaneRule::Percentile {
             self.clutter.retain_dense(
                 &mut self.cropped,
@@ -304,6 +314,7 @@ impl Preprocessor {
         };
         self.plane_z_m = base + config.plane_raise_m as f32;
         let plane = self.plane_z_m;
+        self.holes.set_canopy(f64::from(plane), f64::from(top - ABOVE_TOP_M));
         // Every return is written to the next free slot and only a canopy return takes it: canopy and
         // ground returns alternate along the rings, and a branch on the side mispredicted at every
         // change. The slots left from the last scan are overwritten before they are read.

@@ -31,6 +31,7 @@ use crate::geometry::{Pose2, wrap_angle};
 
 use super::RowEstimate;
 use super::config::DetectorConfig;
+use super::holes::Holes;
 use super::interleave::for_each_interleaved;
 use super::map::CentroidMap;
 
@@ -83,6 +84,9 @@ const CELLS: usize = 16;
 const PEAK_STEPS: usize = 4;
 /// Fewest centroids from the current scan for it to count as seeing the rows.
 const MIN_FRESH_CENTROIDS: usize = 2;
+/// While a hole hides the lane's own rows, the map holds them as long as it reaches this far ahead
+/// of `base_link` on both, m.
+const HOLE_MAP_REACH_M: f64 = 3.0;
 /// Least total centroid weight (full-weight centroids) for a correction to be accepted.
 const MIN_FIT_WEIGHT: f64 = 3.0;
 
@@ -107,6 +111,11 @@ impl Lane {
     /// Row spacing, m.
     pub(crate) fn spacing_m(&self) -> f64 {
         self.crests * self.s
+    }
+
+    /// Canopy crest `j` (the lattice's own index, as [`Lane::assign`] gives it) at `x`, m.
+    fn crest_y(&self, j: i32, x: f64) -> f64 {
+        self.centre(x) + (j as f64 + 0.5) * self.s
     }
 
     /// Reported row `j` (not a canopy crest) at `x`, m.
@@ -218,6 +227,11 @@ pub(crate) struct Lanes {
     /// Lateral profile of every bin across its gate, bin-major ([`CELLS`] per bin).
     cells: Vec<Cell>,
     visible: Vec<u32>,
+    /// Bins a hole of this scan reaches into (see [`Lanes::mark_holes`]), and whether any does.
+    in_hole: Vec<bool>,
+    any_in_hole: bool,
+    /// This scan's centroids on the lane's own rows (the first left and right).
+    own_rows_fresh: usize,
     x_bins: usize,
     hist: Vec<f64>,
     /// Lateral histograms of the start-up search: ground returns (cropped, not canopy), then their
@@ -296,6 +310,9 @@ impl Lanes {
             bins: vec![Bin::default(); ROWS * x_bins],
             cells: vec![Cell::default(); ROWS * x_bins * CELLS],
             visible: vec![0; x_bins],
+            in_hole: vec![false; ROWS * x_bins],
+            any_in_hole: false,
+            own_rows_fresh: 0,
             x_bins,
             hist: vec![0.0; HIST_BINS],
             ground: vec![0.0; HIST_BINS],
@@ -336,11 +353,13 @@ impl Lanes {
         self.slide_onset_m = None;
     }
 
-    /// One scan: `canopy` and `cropped` points in `base_link`, `odom` its pose at `t_s`.
+    /// One scan: `canopy` and `cropped` points in `base_link`, the scan's `holes`, `odom` its pose at
+    /// `t_s`.
     pub(crate) fn step(
         &mut self,
         canopy: &[[f32; 3]],
         cropped: &[[f32; 3]],
+        holes: &Holes,
         odom: &Pose2,
         t_s: f64,
         config: &DetectorConfig,
@@ -385,11 +404,18 @@ impl Lanes {
             self.near_gap_scans = 0;
         }
         self.measure(canopy, cropped, &predicted, config);
+        self.mark_holes(&predicted, holes, config);
         let fresh = self.store_centroids(&predicted, odom, config, map);
         let fitted = self.correct(&predicted, odom, config, map, centroids);
         // Only this scan's own centroids count as seeing the rows: the map alone would keep a lane alive
         // for as long as its centroids stay ahead of the robot.
-        let updated = fitted.is_some() && fresh >= MIN_FRESH_CENTROIDS;
+        // A hole that hides the lane's own rows leaves the lane to the map alone, which runs out
+        // ahead: such a scan does not see the rows (soak seed 1454: a 51° sector straight ahead over
+        // 5 m; the map's rows shortened to 1 m ahead and the fit swung onto a row).
+        let own_rows_hidden = self.any_in_hole
+            && self.own_rows_fresh == 0
+            && fitted.is_none_or(|f| f.far_x_m.iter().any(|&x| x < HOLE_MAP_REACH_M));
+        let updated = fitted.is_some() && fresh >= MIN_FRESH_CENTROIDS && !own_rows_hidden;
         let (lane, support, far_x_m) = match fitted {
             Some(fit) => {
                 self.shear_per_m = fit.shear_per_m;
@@ -456,6 +482,7 @@ impl Lanes {
             return 0;
         };
         self.measure(canopy, cropped, &predicted, config);
+        self.clear_holes();
         self.store_centroids(&predicted, odom, config, map)
     }
 
@@ -545,6 +572,45 @@ impl Lanes {
         });
     }
 
+    /// Marks the bins of `lane` that a hole of the scan reaches into: the canopy of such a bin is
+    /// seen in part, and its centroid leans away from the hole (see [`super::holes`]).
+    fn mark_holes(&mut self, lane: &Lane, holes: &Holes, config: &DetectorConfig) {
+        self.clear_holes();
+        if !holes.any() {
+            return;
+        }
+        self.any_in_hole = true;
+        let gate = config.gate_fraction * lane.s;
+        for (row, j) in (J_MIN..J_MIN + ROWS as i32).enumerate() {
+            for xi in 0..self.x_bins {
+                let x0 = X_LO_M + xi as f64 * config.map_bin_m;
+                let x1 = x0 + config.map_bin_m;
+                let (y0, y1) = (lane.crest_y(j, x0), lane.crest_y(j, x1));
+                let y = [y0.min(y1) - gate, y0.max(y1) + gate];
+                if let Some(h) = self.in_hole.get_mut(row * self.x_bins + xi) {
+                    *h = holes.touches([x0, x1], y);
+                }
+            }
+        }
+    }
+
+    /// Marks no bin as reached by a hole.
+    fn clear_holes(&mut self) {
+        if self.any_in_hole {
+            self.in_hole.iter_mut().for_each(|h| *h = false);
+            self.any_in_hole = false;
+        }
+    }
+
+    /// True when the point (`base_link`) falls in a bin of `lane` that a hole of the scan reaches into.
+    fn in_hole_at(&self, lane: &Lane, x: f64, y: f64, inv_bin: f64) -> bool {
+        if !self.any_in_hole {
+            return false;
+        }
+        let (j, _) = lane.assign(x, y);
+        self.bin_index(j, x, inv_bin).and_then(|i| self.in_hole.get(i).copied()).unwrap_or(false)
+    }
+
     /// Whether the canopy of bin `i` peaks inside its gate (half-width `gate`, m). A window `core` m either
     /// side, started at the mean residual of the whole gate, moves to the mean of the cells it covers
     /// until it settles (a flat-kernel mean shift on the bin's lateral profile): on a row it settles on
@@ -605,11 +671,16 @@ impl Lanes {
         map: &mut CentroidMap,
     ) -> usize {
         self.current.clear();
+        self.own_rows_fresh = 0;
         let (gate, core) = (config.gate_fraction * lane.s, config.core_fraction * lane.s);
+        let crests = lane.crests as i32;
         for (i, b) in self.bins.iter().enumerate() {
-            if b.n as usize >= config.map_min_points && self.peaks_inside(i, gate, core) {
+            let in_hole = self.in_hole.get(i).copied().unwrap_or(false);
+            if b.n as usize >= config.map_min_points && !in_hole && self.peaks_inside(i, gate, core) {
                 let n = b.n as f64;
                 self.current.push([b.sx / b.w, b.sy / b.w, n.min(FULL_WEIGHT_POINTS) / FULL_WEIGHT_POINTS]);
+                let j = (i / self.x_bins) as i32 + J_MIN;
+                self.own_rows_fresh += usize::from((-crests..crests).contains(&j));
             }
         }
         let keyframe = self.last_key.is_none_or(|k| {
@@ -662,14 +733,17 @@ impl Lanes {
         let (sin, cos) = odom.yaw.sin_cos();
         self.local.clear();
         self.local.extend(self.current.iter().map(|&[x, y, w]| [x, y, w, 0.0]));
+        let inv_bin = 1.0 / config.map_bin_m;
         for p in map.points() {
             let (dx, dy) = (p[0] - odom.x, p[1] - odom.y);
-            let x = cos * dx + sin * dy;
-            if x >= -config.behind_m && x < view_start {
+            let (x, y) = (cos * dx + sin * dy, cos * dy - sin * dx);
+            // The map also holds the bins a hole of this scan reaches into, whose fresh centroids
+            // were left out.
+            if x >= -config.behind_m && (x < view_start || self.in_hole_at(predicted, x, y, inv_bin)) {
                 // Odometry drift grows with the distance driven since the centroid was stored.
                 let age_m = (self.odometer_m - p[3]).max(0.0);
                 let age = age_m / AGE_SCALE_M;
-                self.local.push([x, cos * dy - sin * dx, p[2] / (1.0 + age * age), age_m]);
+                self.local.push([x, y, p[2] / (1.0 + age * age), age_m]);
             }
         }
         // The shear is an unknown only when enabled; otherwise it is fixed at 0.
@@ -794,7 +868,10 @@ impl Lanes {
             if canopy >= min {
                 last_canopy = Some(xi);
             }
-            if self.visible.get(xi).is_some_and(|&v| v >= min) {
+            // Where a hole hides the lane's rows the ground was not seen empty: a canopy cut off by
+            // a hole is no row end (soak seed 605: a 70° sector ahead read as the end 2 m on, and the
+            // robot drove on blind towards it, 4 m before the true end).
+            if self.visible.get(xi).is_some_and(|&v| v >= min) && !self.near_rows_in_hole(xi) {
                 last_seen = Some(xi);
             }
         }
@@ -808,6 +885,16 @@ impl Lanes {
         } else {
             self.end = None;
         }
+    }
+
+    /// True when a hole of the scan reaches into a bin of the rows that decide the row end at
+    /// along-x bin `xi`.
+    fn near_rows_in_hole(&self, xi: usize) -> bool {
+        self.any_in_hole
+            && NEAR_ROWS
+                .iter()
+                .filter_map(|&j| usize::try_from(j - J_MIN).ok())
+                .any(|row| self.in_hole.get(row * self.x_bins + xi).copied().unwrap_or(false))
     }
 
     fn end_ahead(&self, odom: &Pose2) -> Option<f64> {
@@ -852,6 +939,21 @@ mod tests {
     use super::search::*;
     use super::slide::*;
     use super::*;
+
+    /// One step of `lanes` on a whole scan (no hole).
+    #[allow(clippy::too_many_arguments)]
+    fn step_whole(
+        lanes: &mut Lanes,
+        canopy: &[[f32; 3]],
+        cropped: &[[f32; 3]],
+        odom: &Pose2,
+        t: f64,
+        config: &DetectorConfig,
+        map: &mut CentroidMap,
+        centroids: &mut Vec<[f64; 2]>,
+    ) -> LaneOutput {
+        lanes.step(canopy, cropped, &Holes::default(), odom, t, config, map, centroids)
+    }
 
     fn rows_of_points(offsets: &[f64], heading: f64) -> Vec<[f32; 3]> {
         let mut pts = Vec::new();
@@ -934,7 +1036,16 @@ mod tests {
             let y0 = 0.15 * k as f64 / 40.0;
             let (canopy, cropped) = two_crest_scan(y0);
             let odom = Pose2::new(0.1 * k as f64, y0, 0.0);
-            let out = lanes.step(&canopy, &cropped, &odom, 0.1 * k as f64, &cfg, &mut map, &mut centroids);
+            let out = step_whole(
+                &mut lanes,
+                &canopy,
+                &cropped,
+                &odom,
+                0.1 * k as f64,
+                &cfg,
+                &mut map,
+                &mut centroids,
+            );
             let lane = out.lane.unwrap();
             assert!((lane.spacing_m() - 0.75).abs() < 0.03, "scan {k}: {lane:?}");
             assert!((lane.o + y0).abs() < 0.03, "scan {k}: {lane:?}");
@@ -1082,7 +1193,9 @@ mod tests {
         (0..scans)
             .map(|k| {
                 let t = 0.1 * k as f64;
-                lanes.step(pts, pts, &Pose2::default(), t, cfg, &mut map, &mut centroids).lane.is_some()
+                step_whole(&mut lanes, pts, pts, &Pose2::default(), t, cfg, &mut map, &mut centroids)
+                    .lane
+                    .is_some()
             })
             .collect()
     }
@@ -1200,7 +1313,8 @@ mod tests {
                 (-3..3).zip(slides_per_m).map(|(j, k)| (j as f64 + 0.5) * 0.75 - k * x).collect();
             let pts = rows_of_points(&rows, 0.0);
             let odom = Pose2::new(x, 0.0, 0.0);
-            let out = lanes.step(&pts, &pts, &odom, 0.1 * k as f64, config, &mut map, &mut centroids);
+            let out =
+                step_whole(&mut lanes, &pts, &pts, &odom, 0.1 * k as f64, config, &mut map, &mut centroids);
             last = out.lane.or(last);
             verdicts.push((x, lanes.slide_per_m()));
         }
@@ -1268,7 +1382,8 @@ mod tests {
             let y_true = slide_per_m * (x - slide_from_m).max(0.0);
             let rows: Vec<f64> = (-3..3).map(|j| (j as f64 + 0.5) * 0.75 - y_true).collect();
             let pts = rows_of_points(&rows, 0.0);
-            let out = lanes.step(&pts, &pts, &odom, 0.1 * k as f64, config, &mut map, &mut centroids);
+            let out =
+                step_whole(&mut lanes, &pts, &pts, &odom, 0.1 * k as f64, config, &mut map, &mut centroids);
             if let Some(lane) = out.lane {
                 error = lane.o + y_true;
             }
@@ -1351,7 +1466,7 @@ mod tests {
                 .map(|[px, py, pz]| [px, py + drift as f32, pz])
                 .collect();
             let odom = Pose2::new(x, 0.0, 0.0);
-            lanes.step(&pts, &pts, &odom, 0.1 * k as f64, config, &mut map, &mut centroids);
+            step_whole(&mut lanes, &pts, &pts, &odom, 0.1 * k as f64, config, &mut map, &mut centroids);
             verdicts.push((x, lanes.slide_per_m()));
         }
         verdicts
