@@ -111,7 +111,7 @@ impl Holes {
         !self.found.is_empty()
     }
 
-    /// Number of holes and their total width, degrees (approximate: bins at the sensor's front).
+    /// Each hole's width, degrees, counting every bin as 360/512°.
     #[cfg(test)]
     fn widths_deg(&self) -> Vec<f64> {
         self.found.iter().map(|&(a, b)| f64::from(b - a + 1) * 360.0 / BINS as f64).collect()
