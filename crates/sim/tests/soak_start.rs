@@ -99,3 +99,24 @@ fn a_start_lane_far_off_the_robot_heading_is_not_followed() {
     let before = run_case(&case).expect("runs");
     assert!(before.crop_contacts > 0, "the case no longer provokes the failure: {before:?}");
 }
+
+#[test]
+fn a_robot_set_down_among_tall_weeds_waits_for_rows_that_run_along_the_view() {
+    // Young corn set down before a patch of weeds taller than the crop in every inter-row: the
+    // search took a lattice of weeds and crop (451: half a spacing off, 4 plants; 1951: its lane
+    // centre 0.45 spacings off, on a row, 9-11 plants). Over bare ground the canopy of the first 3 m
+    // ahead must now run along the lattice's rows (`detector.start_row_contrast`); along these
+    // lattices' rows it does not (their first searches read -0.26 to -0.11), and the robot never
+    // starts.
+    for (seed, summary) in
+        [(451, "young corn 13.1 m x 7 rows 0.70 m"), (1951, "young corn 12.6 m x 6 rows 0.77 m")]
+    {
+        let mut case = soak_case(seed);
+        assert!(case.scenario.summary.starts_with(summary), "{}", case.scenario.summary);
+        let o = run_case(&case).expect("runs");
+        assert_eq!((o.crop_contacts, o.unsafe_commands, o.end.as_str()), (0, 0, "never acquired"), "{o:?}");
+        case.navigator.detector.start_row_contrast = 0.0;
+        let before = run_case(&case).expect("runs");
+        assert!(before.crop_contacts > 0, "seed {seed} no longer provokes the failure: {before:?}");
+    }
+}

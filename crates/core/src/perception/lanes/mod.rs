@@ -244,6 +244,8 @@ pub(crate) struct Lanes {
     filled: Vec<bool>,
     /// Highest canopy point per along-x slice and lateral bin, slice-major (0: none).
     slices: Vec<f64>,
+    /// Per lateral bin, how many of those slices hold canopy (see [`Lanes::lane_contrast`]).
+    occupancy: Vec<f64>,
     /// Centroids of the fit, `[x, y, weight, age]` in `base_link`, the age in metres driven since the
     /// centroid was stored.
     local: Vec<[f64; 4]>,
@@ -320,6 +322,7 @@ impl Lanes {
             envelope: vec![0.0; HIST_BINS],
             filled: vec![false; HIST_BINS],
             slices: vec![0.0; ENVELOPE_SLICES * HIST_BINS],
+            occupancy: vec![0.0; HIST_BINS],
             local: Vec::with_capacity(config.map_capacity + ROWS * x_bins),
             current: Vec::with_capacity(ROWS * x_bins),
             last_key: None,
@@ -978,6 +981,74 @@ mod tests {
         assert!((lane.s - 0.75).abs() < 0.02, "{lane:?}");
         assert!((lane.a.atan() - 5f64.to_radians()).abs() < 1f64.to_radians(), "{lane:?}");
         assert!((lane.o - 0.1).abs() < 0.03, "{lane:?}");
+    }
+
+    /// One scan of a young crop over bare ground seen from where the robot was set down: rows 0.76 m
+    /// apart (a whole number of histogram bins) with the lane centre at `centre_m` (`base_link`), canopy 0.1 m high along the whole view
+    /// (x = 1.5-4.5 m), ground returns every 2 cm across it, and `weeds` clumps 0.3 m wide and 0.3 m
+    /// high (taller than the crop) scattered over the inter-rows, as the soak's tall weed patch lays
+    /// them. Returns (canopy, cropped ⊇ canopy).
+    fn young_scan(centre_m: f64, weeds: usize, seed: u64) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
+        let (mut canopy, mut cropped) = (Vec::new(), Vec::new());
+        let rows: Vec<f64> = (-3..3).map(|k| centre_m + (k as f64 + 0.5) * 0.76).collect();
+        for i in 0..150 {
+            let x = 1.5 + 0.02 * i as f64;
+            for r in &rows {
+                for dy in [-0.06, -0.02, 0.02, 0.06] {
+                    canopy.push([x as f32, (r + dy) as f32, 0.1]);
+                }
+            }
+            for j in 0..200 {
+                cropped.push([x as f32, (-2.0 + 0.02 * j as f64) as f32, -0.3]);
+            }
+        }
+        let mut rng = crate::perception::rng::Rng::new(seed);
+        for _ in 0..weeds {
+            // Clear of the rows by their own radius (0.15 m) and 0.05 m more, like the simulator's.
+            let lane = rows[rng.below(rows.len() - 1)] + 0.38;
+            let (x, y) = (1.5 + 3.0 * rng.unit(), lane + 0.18 * (2.0 * rng.unit() - 1.0));
+            for k in 0..60 {
+                let (dx, dy) = (0.15 * (2.0 * rng.unit() - 1.0), 0.15 * (2.0 * rng.unit() - 1.0));
+                if dx.hypot(dy) <= 0.15 && k % 2 == 0 {
+                    canopy.push([(x + dx) as f32, (y + dy) as f32, 0.3]);
+                }
+            }
+        }
+        cropped.extend_from_slice(&canopy);
+        (canopy, cropped)
+    }
+
+    #[test]
+    fn a_young_crop_runs_along_its_rows_and_tall_weeds_do_not() {
+        // Set down in a young crop, the search takes the rows (centre within 3 cm), their canopy held
+        // along x in every slice; 0.4 spacings off the centre too (the `recovery` start). Tall weed
+        // clumps over the inter-rows (3 per m², the soak's patch) outweigh the rows in the search, whose
+        // lattice then has no contrast along x: the search waits. With the test off it takes that
+        // lattice in most of ten such scans (at half the spacing, or a quarter spacing off).
+        let cfg = DetectorConfig::default();
+        for centre in [0.0, 0.3] {
+            let (canopy, cropped) = young_scan(centre, 0, 1);
+            let mut lanes = Lanes::new(&cfg);
+            let lane = lanes.search(&canopy, &cropped, &cfg).expect("rows alone are a start");
+            assert!((lane.o - centre).abs() < 0.03 && (lane.spacing_m() - 0.76).abs() < 0.03, "{lane:?}");
+            let contrast = lanes.lane_contrast(&lane, 3.0);
+            assert!(contrast > 1.0, "{contrast}");
+        }
+        let off = DetectorConfig { start_row_contrast: 0.0, ..cfg.clone() };
+        let mut wrong = 0;
+        for seed in 1..=10 {
+            let (canopy, cropped) = young_scan(0.0, 34, seed);
+            assert_eq!(Lanes::new(&cfg).search(&canopy, &cropped, &cfg), None, "weeds {seed}");
+            let lane = Lanes::new(&off).search(&canopy, &cropped, &off);
+            wrong += usize::from(lane.is_some_and(|l| (l.spacing_m() - 0.76).abs() > 0.1 || l.o.abs() > 0.1));
+        }
+        assert!(wrong >= 5, "{wrong} of 10 weed scans give the test-less search a wrong lattice");
+        // A robot that has driven off where it was set down is not held back (its searches come after
+        // it lost rows it followed, bounded by the blind distance).
+        let (canopy, cropped) = young_scan(0.0, 34, 1);
+        let mut moved = Lanes::new(&cfg);
+        moved.odometer_m = 1.0;
+        assert!(moved.search(&canopy, &cropped, &cfg).is_some());
     }
 
     /// One scan of a grown canopy, `base_link` at lateral offset `y0_m` from the lane centre: rows 0.75 m

@@ -42,6 +42,20 @@ const CLOSED_CANOPY_SHARE: f64 = 0.85;
 /// the last slice.
 const ENVELOPE_SLICE_M: f64 = 0.5;
 
+/// Distance driven (odometry) within which the robot still stands where it was set down, m: the
+/// start-up search there asks the canopy to run along the rows (`DetectorConfig::start_row_contrast`).
+const SET_DOWN_M: f64 = 0.1;
+
+/// Reach of the view (`base_link` x, m) whose canopy must run along a start-up lattice's rows: the
+/// stretch the robot drives into first (the default `start_min_reach_m` of the start-up
+/// confirmation). A weed patch farther ahead is met while tracking, where the fit's gates hold it off.
+const NEAR_VIEW_M: f64 = 3.0;
+
+/// Largest share of the cropped returns that are canopy for the ground to show between the rows: the
+/// soak's young fields measured 0.03-0.26 at their start, 0.18-0.40 with tall weeds in view, its grown
+/// ones 0.49-0.88 (0.32 with every row missing over half the view).
+const OPEN_CANOPY_RETURNS: f64 = 0.45;
+
 /// Fewest returns in a lateral bin for its ground share to count.
 const MIN_BIN_RETURNS: f64 = 3.0;
 
@@ -126,7 +140,17 @@ impl Lanes {
         // the plants has its centre between two rows, and tall weeds in every inter-row make a second
         // lattice half a spacing off the crop's (soak seed 451: the lane centre was put on a row).
         let centred = lane.o.abs() <= MAX_START_OFFSET * lane.spacing_m();
-        (centred && lane.is_sane(config)).then_some(lane)
+        // Where the robot was set down, the canopy of an open crop must run along the lattice's rows
+        // in the view ahead: tall weeds in every inter-row make lattices of their own that wander from
+        // scan to scan (soak seeds 31, 451, 596, 837, 1641, 1951 started on one and ran over plants).
+        // Waiting is safe; a robot that has moved has followed rows, and its later searches are
+        // bounded by the blind distance.
+        let ground_shows = (canopy.len() as f64) < OPEN_CANOPY_RETURNS * cropped.len() as f64;
+        let runs_along = !ground_shows
+            || self.odometer_m > SET_DOWN_M
+            || config.start_row_contrast <= 0.0
+            || self.lane_contrast(&lane, NEAR_VIEW_M) >= config.start_row_contrast;
+        (centred && runs_along && lane.is_sane(config)).then_some(lane)
     }
 
     /// The start-up lane when the planted spacing is known: of the canopy density's period with one or
@@ -191,6 +215,42 @@ impl Lanes {
             d.min(spacing - d)
         };
         if apart(o + s) < apart(o) { o + s } else { o }
+    }
+
+    /// How strongly the canopy runs along `lane`'s rows in the view nearer than `near_m` (`base_link`
+    /// x): per lateral bin, the number of the along-x slices of [`Lanes::fill_envelope`] (which must
+    /// have run at the lane's heading) that hold canopy; returned is that count's component in phase
+    /// with the lane's rows (a cosine of the lattice's period peaking on them), relative to the bins
+    /// holding canopy and the slices holding any. 2 for narrow rows with canopy in every slice right
+    /// on the lane's rows, 0 for canopy spread evenly across, negative for a lattice whose rows lie
+    /// where the canopy does not run (on the inter-rows).
+    pub(super) fn lane_contrast(&mut self, lane: &Lane, near_m: f64) -> f64 {
+        let occupancy = &mut self.occupancy;
+        occupancy.iter_mut().for_each(|o| *o = 0.0);
+        let mut slices = 0.0;
+        let near = (((near_m - X_LO_M) / ENVELOPE_SLICE_M).ceil() as usize).min(ENVELOPE_SLICES);
+        for slice in self.slices.chunks_exact(HIST_BINS).take(near) {
+            if slice.iter().any(|&v| v > 0.0) {
+                slices += 1.0;
+                for (o, &v) in occupancy.iter_mut().zip(slice) {
+                    if v > 0.0 {
+                        *o += 1.0;
+                    }
+                }
+            }
+        }
+        if slices == 0.0 {
+            return 0.0;
+        }
+        let holding = occupancy.iter().filter(|&&o| o > 0.0).count() as f64;
+        let mean = occupancy.iter().sum::<f64>() / occupancy.len() as f64;
+        // The first row left of the lane centre, across the heading like the bins.
+        let (spacing, first_row_m) = (lane.spacing_m(), lane.o + 0.5 * lane.spacing_m());
+        let mut c = 0.0;
+        for (i, o) in occupancy.iter().enumerate() {
+            c += (o - mean) * (std::f64::consts::TAU * (hist_centre(i) - first_row_m) / spacing).cos();
+        }
+        2.0 * c / (holding * slices)
     }
 
     /// The canopy's upper envelope across the rows along heading slope `a`: per lateral bin, the mean
