@@ -984,10 +984,11 @@ mod tests {
     }
 
     /// One scan of a young crop over bare ground seen from where the robot was set down: rows 0.76 m
-    /// apart (a whole number of histogram bins) with the lane centre at `centre_m` (`base_link`), canopy 0.1 m high along the whole view
-    /// (x = 1.5-4.5 m), ground returns every 2 cm across it, and `weeds` clumps 0.3 m wide and 0.3 m
-    /// high (taller than the crop) scattered over the inter-rows, as the soak's tall weed patch lays
-    /// them. Returns (canopy, cropped ⊇ canopy).
+    /// apart (a whole number of histogram bins) with the lane centre at `centre_m` (`base_link`),
+    /// canopy 0.1 m high along the whole view (x = 1.5-4.5 m), ground returns every 2 cm across it,
+    /// and `weeds` clumps 0.3 m wide and 0.3 m high (taller than the crop) scattered over the
+    /// inter-rows by a generator seeded with `seed`, as the soak's tall weed patch lays them (up to 30
+    /// returns each). Returns (canopy, cropped ⊇ canopy).
     fn young_scan(centre_m: f64, weeds: usize, seed: u64) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
         let (mut canopy, mut cropped) = (Vec::new(), Vec::new());
         let rows: Vec<f64> = (-3..3).map(|k| centre_m + (k as f64 + 0.5) * 0.76).collect();
@@ -1007,9 +1008,9 @@ mod tests {
             // Clear of the rows by their own radius (0.15 m) and 0.05 m more, like the simulator's.
             let lane = rows[rng.below(rows.len() - 1)] + 0.38;
             let (x, y) = (1.5 + 3.0 * rng.unit(), lane + 0.18 * (2.0 * rng.unit() - 1.0));
-            for k in 0..60 {
+            for _ in 0..30 {
                 let (dx, dy) = (0.15 * (2.0 * rng.unit() - 1.0), 0.15 * (2.0 * rng.unit() - 1.0));
-                if dx.hypot(dy) <= 0.15 && k % 2 == 0 {
+                if dx.hypot(dy) <= 0.15 {
                     canopy.push([(x + dx) as f32, (y + dy) as f32, 0.3]);
                 }
             }
