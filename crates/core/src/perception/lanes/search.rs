@@ -73,7 +73,9 @@ impl Lanes {
     /// centre (between its two rows), and finds nothing when the nearest gap is more than
     /// [`MAX_START_OFFSET`] spacings away or the sharpest heading is at the edge of the search. When the
     /// planted spacing is known, it settles the tie instead of the ground (see
-    /// [`Lanes::nearest_planted`]), and a lattice too far from it is no lane.
+    /// [`Lanes::nearest_planted`]), and a lattice too far from it is no lane. Where the robot was set
+    /// down over an open canopy, a lattice whose rows the canopy ahead does not run along is no lane
+    /// either (see [`Lanes::lane_contrast`], `DetectorConfig::start_row_contrast`).
     pub(super) fn search(
         &mut self,
         canopy: &[[f32; 3]],
