@@ -120,3 +120,14 @@ fn a_robot_set_down_among_tall_weeds_waits_for_rows_that_run_along_the_view() {
         assert!(before.crop_contacts > 0, "seed {seed} no longer provokes the failure: {before:?}");
     }
 }
+
+#[test]
+fn a_grown_corn_lane_with_two_crests_per_row_is_centred_on_the_middle_crest() {
+    // Fault-free grown corn 0.73 m apart: the plant tops crest over the rows and the arching leaves
+    // meet in a second crest over the middle of each inter-row. The search took the gap between
+    // crests nearest the robot for the lane centre, a quarter spacing off, and the robot followed the
+    // first lane 13-23 cm off its centre line (1 plant); the envelope's rise over the rows now puts
+    // the centre on the middle crest.
+    let o = run_seed(1390, "grown corn 10.7 m x 8 rows 0.73 m");
+    assert_eq!((o.crop_contacts, o.unsafe_commands, o.end.as_str()), (0, 0, "done"), "{o:?}");
+}

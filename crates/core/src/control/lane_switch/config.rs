@@ -235,7 +235,8 @@ pub struct LaneSwitchConfig {
     /// plus 0.02 rad/s. Rows bend gently (the paper's curved field at most 0.024 1/m), yet a robot just
     /// set down, or one whose lattice jumped, was swung 13-23° towards a fresh lattice before it had
     /// rolled a metre, which turned the view the detector tracks (soak seed 1390, fault-free grown
-    /// corn: a 0.23 rad swing at the start, then the whole lane 14-23 cm off the centre line). Default
+    /// corn: a 0.23 rad swing at the start, then the whole lane 14-23 cm off the centre line; that
+    /// offset came from the start-up search, a lane centre a quarter spacing off, since mended). Default
     /// 0 (off): at 0.5 the soak's seeds 1000-1999 ran over 36 plants instead of 86, but seeds 0-999
     /// 46 instead of 39 (fault-free 765: 0 -> 5), as many runs touched plants over the 2000 (24),
     /// 24 fewer were done, and the `recovery` start (0.3 m, 8° off) ran over 12 plants instead of 9

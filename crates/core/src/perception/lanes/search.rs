@@ -67,15 +67,16 @@ impl Lanes {
     /// crests per spacing, and the canopy alone then cannot tell them from rows at half the spacing (a
     /// common 0.38 m soybean spacing looks the same). The ground breaks the tie: where it shows through
     /// differs between the row and the inter-row, so its share of the returns repeats once per true
-    /// spacing. When it repeats at about twice the canopy's period and not at the period itself, the
-    /// spacing is the ground's period. The lane centre is the gap between canopy crests nearest the
-    /// robot either way: the search assumes the robot starts within a quarter spacing of its lane
-    /// centre (between its two rows), and finds nothing when the nearest gap is more than
-    /// [`MAX_START_OFFSET`] spacings away or the sharpest heading is at the edge of the search. When the
-    /// planted spacing is known, it settles the tie instead of the ground (see
-    /// [`Lanes::nearest_planted`]), and a lattice too far from it is no lane. Where the robot was set
-    /// down over an open canopy, a lattice whose rows the canopy ahead does not run along is no lane
-    /// either (see [`Lanes::lane_contrast`], `DetectorConfig::start_row_contrast`).
+    /// spacing. When it repeats at about twice the canopy's period and not at the period itself, there
+    /// are two crests per row, and the canopy's upper envelope tells whether the lane centre is a
+    /// crest or a gap between crests (see [`two_crest_lane_centre`]); with one crest per row it is the
+    /// gap between crests. Of those, the search takes the one nearest the robot: it assumes the robot
+    /// starts within a quarter spacing of its lane centre (between its two rows), and finds nothing
+    /// when the nearest one is more than [`MAX_START_OFFSET`] spacings away or the sharpest heading is
+    /// at the edge of the search. When the planted spacing is known, it settles the tie instead of the
+    /// ground (see [`Lanes::nearest_planted`]), and a lattice too far from it is no lane. Where the
+    /// robot was set down over an open canopy, a lattice whose rows the canopy ahead does not run
+    /// along is no lane either (see [`Lanes::lane_contrast`], `DetectorConfig::start_row_contrast`).
     pub(super) fn search(
         &mut self,
         canopy: &[[f32; 3]],
@@ -126,9 +127,15 @@ impl Lanes {
                 let o = Lane { o: circular_mean(&self.hist, s) + 0.5 * s, a, b: 0.0, s, crests: 1.0 }
                     .normalised()
                     .o;
-                match ground_period(&self.ground, ground_points, s, config) {
-                    Some(spacing_m) => Lane { o, a, b: 0.0, s: 0.5 * spacing_m, crests: 2.0 },
-                    None => Lane { o, a, b: 0.0, s, crests: 1.0 },
+                if ground_repeats_every_other_crest(&self.ground, ground_points, s, config) {
+                    // The canopy's own period and phase, measured over every crest in view: the
+                    // ground only tells that there are two crests per row (its period, found within
+                    // ±20 % and mostly from the robot's own inter-row, read 0.82 m for 0.73 m rows in
+                    // soak seed 1390).
+                    let o = two_crest_lane_centre(&self.hist, &self.envelope, s);
+                    Lane { o, a, b: 0.0, s, crests: 2.0 }
+                } else {
+                    Lane { o, a, b: 0.0, s, crests: 1.0 }
                 }
             }
             (None, Some(e)) => {
@@ -403,13 +410,18 @@ fn peak_lag(ac: impl Fn(usize) -> f64, config: &DetectorConfig) -> Option<f64> {
     (s >= config.spacing_min_m && s <= config.spacing_max_m).then_some(s)
 }
 
-/// Tests the canopy period `s` against the ground-share profile of `ground_points` returns: when the
-/// ground repeats about every `2s` but not every `s`, the rows are that far apart and the canopy has two
-/// crests per spacing. Returns the ground's period, m, or `None` when the ground is too sparse to say,
-/// agrees with `s`, or `2s` is outside the searched range.
-fn ground_period(ground: &[f64], ground_points: f64, s: f64, config: &DetectorConfig) -> Option<f64> {
+/// Tests the canopy period `s` against the ground-share profile of `ground_points` returns: true when
+/// the ground repeats about every `2s` but not every `s` (the rows are that far apart and the canopy
+/// has two crests per spacing); false when the ground is too sparse to say, agrees with `s`, or `2s` is
+/// outside the searched range.
+fn ground_repeats_every_other_crest(
+    ground: &[f64],
+    ground_points: f64,
+    s: f64,
+    config: &DetectorConfig,
+) -> bool {
     if 2.0 * s > config.spacing_max_m || ground_points < MIN_GROUND_POINTS {
-        return None;
+        return false;
     }
     // The canopy period of a two-crest canopy is only roughly half the spacing: look for the ground's
     // peaks within a fifth of each lag.
@@ -423,7 +435,7 @@ fn ground_period(ground: &[f64], ground_points: f64, s: f64, config: &DetectorCo
     let ((at_s, _), (at_2s, period_m)) = (peak(s), peak(2.0 * s));
     let periodic = at_2s >= MIN_PERIODICITY * autocorrelation(ground, 0);
     let period_ok = period_m >= config.spacing_min_m && period_m <= config.spacing_max_m;
-    (periodic && period_ok && at_s < GROUND_HALF_PERIOD_RATIO * at_2s).then_some(period_m)
+    periodic && period_ok && at_s < GROUND_HALF_PERIOD_RATIO * at_2s
 }
 
 fn demean(hist: &mut [f64]) {
@@ -462,4 +474,27 @@ fn circular_mean(hist: &[f64], period_m: f64) -> f64 {
         sn += h * phase.sin();
     }
     sn.atan2(c) * period_m / std::f64::consts::TAU
+}
+
+/// The lane centre of a canopy with two crests per row spacing, m across the rows (`base_link` y at
+/// x = 0 along the search's heading): `hist` is the canopy's lateral profile, `s` its period (half the
+/// row spacing) and `envelope` its upper envelope. The lane centre is a crest or a gap between crests
+/// (they lie a quarter spacing apart), and which one depends on the crop: in grown corn the plant tops
+/// crest over the rows and the arching leaves of two rows meet in a second crest over the middle of
+/// the inter-row, so the lane centre is a crest, and the gaps nearest the robot, a quarter spacing
+/// off, put the wheels on the way to the rows (soak seed 1390: a lane followed 13-23 cm off its
+/// centre line); where the leaves crest either side of each row instead, the lane centre is a gap.
+/// The plant tops tell: the envelope rises once per spacing over the rows, so its component at the
+/// spacing peaks on them, and half a spacing from there lies a crest or a gap. The lane centre is the
+/// crest or the gap, whichever that is, nearest the robot: the envelope says which of the two, not
+/// where (soak seed 1465, a LiDAR mount off by 2.4° in roll: the centre taken nearest half a spacing
+/// from the envelope's peak lay 0.29 m off the robot, and the robot followed it onto a row, 17 plants).
+fn two_crest_lane_centre(hist: &[f64], envelope: &[f64], s: f64) -> f64 {
+    let crest = circular_mean(hist, s);
+    let rows = circular_mean(envelope, 2.0 * s);
+    let quarter = 0.5 * s;
+    // A crest (even) or a gap (odd): only which of the two comes from the envelope, so that a weak or
+    // tilted envelope puts the centre a quarter spacing off at worst, never on a row.
+    let gap = ((rows + s - crest) / quarter).round().rem_euclid(2.0);
+    (crest + gap * quarter + quarter).rem_euclid(s) - quarter
 }
