@@ -1025,8 +1025,8 @@ mod tests {
         // along x in every slice; 0.4 spacings off the centre too (the `recovery` start). Tall weed
         // clumps over the inter-rows (3 per m², the soak's patch) outweigh the rows in the search, whose
         // lattice then has no contrast along x: the search waits. With the test off it takes a lattice
-        // at half the spacing in four of ten such scans (the other six make two-crest lattices whose
-        // centre, half a spacing from the weeds that top them, lies on a row: no start either).
+        // at half the spacing in four of ten such scans (the other six give two crests per row, crop
+        // and weeds, and come out at the crop's spacing, centred on the robot).
         let cfg = DetectorConfig::default();
         for centre in [0.0, 0.3] {
             let (canopy, cropped) = young_scan(centre, 0, 1);
