@@ -123,19 +123,17 @@ impl Lanes {
             }
             (Some(s), _) => {
                 let ground_points = self.fill_ground(canopy, cropped, a);
-                // The lane centre lies between two canopy crests; of those gaps the one nearest the robot.
-                let o = Lane { o: circular_mean(&self.hist, s) + 0.5 * s, a, b: 0.0, s, crests: 1.0 }
-                    .normalised()
-                    .o;
                 if ground_repeats_every_other_crest(&self.ground, ground_points, s, config) {
-                    // The canopy's own period and phase, measured over every crest in view: the
-                    // ground only tells that there are two crests per row (its period, found within
-                    // ±20 % and mostly from the robot's own inter-row, read 0.82 m for 0.73 m rows in
-                    // soak seed 1390).
+                    // The canopy's own period and phase, measured over every crest in view (the
+                    // envelope was filled above at this heading): the ground only tells that there
+                    // are two crests per row (its period, found within ±20 % and mostly from the
+                    // robot's own inter-row, read 0.82 m for 0.73 m rows in soak seed 1390).
                     let o = two_crest_lane_centre(&self.hist, &self.envelope, s);
                     Lane { o, a, b: 0.0, s, crests: 2.0 }
                 } else {
-                    Lane { o, a, b: 0.0, s, crests: 1.0 }
+                    // The lane centre lies between two canopy crests; of those gaps the one nearest
+                    // the robot (`normalised` below).
+                    Lane { o: circular_mean(&self.hist, s) + 0.5 * s, a, b: 0.0, s, crests: 1.0 }
                 }
             }
             (None, Some(e)) => {
