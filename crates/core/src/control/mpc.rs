@@ -23,8 +23,11 @@
 //! tyres off the crop: each tyre patch, at `e_y + x_w sin e_ψ + y_w cos e_ψ` from the centre line,
 //! should stay inside its inter-row, the band between two rows (rows stand `(k + ½)·spacing` to the
 //! side) narrowed by half a tyre and `row_clearance_m`; every metre outside costs
-//! `corridor_weight · excess²` per stage. It matters when the robot starts or drifts far off the
-//! centre line: the lateral term alone would swing the rear tyres across a row on the way back. Under
+//! `corridor_weight · excess²` per stage, and every metre further out than the tyre was when the solve
+//! began (or than its band, when it was inside) costs `corridor_hold_weight` in all (opt-in): a tyre
+//! is held where it is and brought back gently. It matters when the robot starts or drifts far off the centre
+//! line, or the lane moves under it at once: the lateral term alone would swing the rear tyres across
+//! a row on the way back. Under
 //! a slide `e_ψ` is the course's error and the body points a crab angle off it
 //! ([`Mpc::solve_crabbing`]): the tyres are placed by the body, `e_ψ − crab`.
 //!
@@ -101,6 +104,18 @@ pub struct MpcConfig {
     /// settled after 2.27, 5.31 and 4.45 m: a heavier corridor holds the rear tyre at the band edge
     /// and creeps to the centre line, past the 3 m.
     pub corridor_weight: f64,
+    /// Weight of a tyre's move further over a row than it was when the MPC solves, per stage, 1/m²:
+    /// a tyre in its inter-row is held in its band this hard, and one already over a row is kept from
+    /// going further, while its whole excess is brought back at `corridor_weight` (a heavier pull
+    /// there keeps a robot that starts off the line from turning back to it, see above). It matters
+    /// when the lane moves under the robot at once (a canopy registration correction, a slide just
+    /// measured): the lateral term alone turns it back hard enough to swing a rear tyre over a row
+    /// (unit test `a_lane_that_moves_sideways_does_not_swing_a_rear_tyre_over_a_row`: at 6000, 0.2 m
+    /// off, the rear tyre went 5 mm past its band instead of 12). Default 0 (off: at most
+    /// `corridor_weight` has no effect): at 6000 the soak's 2000 seeds ran over 27 plants instead of
+    /// 45, but in 13 runs instead of 9, and `recovery` over 10 plants instead of 9 (docs/faults.md,
+    /// session 36).
+    pub corridor_hold_weight: f64,
     /// Distance of the wheel contact points ahead of and behind `base_link`, m. Default 0.6095.
     pub wheel_x_m: f64,
     /// Distance of the wheel contact points to the side of `base_link`, m. Default 0.762.
@@ -138,6 +153,7 @@ impl Default for MpcConfig {
             yaw_accel_max_radps2: 2.0,
             rate_penalty_weight: 100.0,
             corridor_weight: 600.0,
+            corridor_hold_weight: 0.0,
             wheel_x_m: 0.6095,
             wheel_y_m: 0.762,
             tire_width_m: 0.15,
@@ -164,6 +180,7 @@ impl MpcConfig {
             ("mpc.terminal_factor", self.terminal_factor),
             ("mpc.rate_penalty_weight", self.rate_penalty_weight),
             ("mpc.corridor_weight", self.corridor_weight),
+            ("mpc.corridor_hold_weight", self.corridor_hold_weight),
         ] {
             check_range(name, w, 0.0, 1e6)?;
         }
@@ -243,19 +260,28 @@ struct Corridor {
     /// The body's angle to the motion the MPC plans with, rad: under a slide the state's heading is the
     /// course over the ground and the body points `crab` off it (see [`Mpc::solve_crabbing`]).
     crab_rad: f64,
-    /// `(x, y)` of each tyre in `base_link`, m, and the centre of its inter-row, m.
-    tyres: [(f64, f64, f64); 4],
+    /// Weight added past a tyre's allowance, 1/m² (see [`MpcConfig::corridor_hold_weight`]).
+    hold_weight: f64,
+    /// `(x, y)` of each tyre in `base_link`, m, the centre of its inter-row, m, and its allowance: how
+    /// far from that centre it may go before `hold_weight` applies, m (its band, or where it is at the
+    /// solve when that is farther).
+    tyres: [(f64, f64, f64, f64); 4],
     /// Half-width of the band a tyre centre may use, m.
     half_band: f64,
 }
 
 impl Corridor {
-    const OFF: Corridor =
-        Corridor { weight: 0.0, crab_rad: 0.0, tyres: [(0.0, 0.0, 0.0); 4], half_band: 0.0 };
+    const OFF: Corridor = Corridor {
+        weight: 0.0,
+        hold_weight: 0.0,
+        crab_rad: 0.0,
+        tyres: [(0.0, 0.0, 0.0, 0.0); 4],
+        half_band: 0.0,
+    };
 
     /// The corridor for rows `spacing` apart, or none when the tyres do not fit between them, for a
-    /// body `crab_rad` off the planned motion.
-    fn new(cfg: &MpcConfig, spacing: Option<f64>, crab_rad: f64) -> Self {
+    /// body `crab_rad` off the planned motion, with the robot at `now` = `(e_y, e_ψ)`.
+    fn new(cfg: &MpcConfig, spacing: Option<f64>, crab_rad: f64, now: (f64, f64)) -> Self {
         let Some(s) = spacing.filter(|s| s.is_finite() && *s > 0.0) else { return Self::OFF };
         let half_band = 0.5 * s - 0.5 * cfg.tire_width_m - cfg.row_clearance_m;
         if cfg.corridor_weight <= 0.0 || half_band <= 0.0 {
@@ -264,10 +290,21 @@ impl Corridor {
         // Inter-row centres are whole spacings from the lane centre; each tyre belongs to the nearest.
         let band = (cfg.wheel_y_m / s).round() * s;
         let (x, y) = (cfg.wheel_x_m, cfg.wheel_y_m);
+        // Each tyre may use its band, or as far out as it is now when it is already over a row; past
+        // that it is held (`corridor_hold_weight`), while the whole excess is brought back at
+        // `corridor_weight`, which leaves a robot off the line room to turn back to it.
+        let (sn, cs) = (now.1 - crab_rad).sin_cos();
+        let allowed = |x: f64, y: f64, band: f64| (now.0 + x * sn + y * cs - band).abs().max(half_band);
         Self {
             weight: cfg.corridor_weight,
+            hold_weight: (cfg.corridor_hold_weight - cfg.corridor_weight).max(0.0),
             crab_rad,
-            tyres: [(x, y, band), (x, -y, -band), (-x, y, band), (-x, -y, -band)],
+            tyres: [
+                (x, y, band, allowed(x, y, band)),
+                (x, -y, -band, allowed(x, -y, -band)),
+                (-x, y, band, allowed(-x, y, band)),
+                (-x, -y, -band, allowed(-x, -y, -band)),
+            ],
             half_band,
         }
     }
@@ -280,12 +317,13 @@ impl Corridor {
         // The tyres sit where the body points, not where it moves.
         let (sn, cs) = (ep - self.crab_rad).sin_cos();
         let (mut j, mut d_ey, mut d_ep) = (0.0, 0.0, 0.0);
-        for &(x, y, band) in &self.tyres {
+        for &(x, y, band, allowed) in &self.tyres {
             let off = ey + x * sn + y * cs - band;
             let excess = off.abs() - self.half_band;
             if excess > 0.0 {
-                j += self.weight * excess * excess;
-                let g = 2.0 * self.weight * excess * off.signum();
+                let worse = (off.abs() - allowed).max(0.0);
+                j += self.weight * excess * excess + self.hold_weight * worse * worse;
+                let g = 2.0 * (self.weight * excess + self.hold_weight * worse) * off.signum();
                 d_ey += g;
                 d_ep += g * (x * cs - y * sn);
             }
@@ -528,7 +566,8 @@ impl Mpc {
         self.stage.v_ref = v_ref;
         self.stage.v_prev = previous.v;
         self.stage.w_prev = previous.omega;
-        self.stage.corridor = Corridor::new(&self.cfg, path.row_spacing_m(), crab_rad);
+        self.stage.corridor =
+            Corridor::new(&self.cfg, path.row_spacing_m(), crab_rad, (state.lateral_m, state.heading_rad));
         // Curvature where the warm-start plan expects to be at each stage.
         let mut s = state.s_m;
         for (kappa, uk) in self.stage.kappa.iter_mut().zip(self.u.chunks_exact(2)) {
@@ -602,6 +641,11 @@ mod tests {
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
+    /// Robot states at a solve: on the centre line (every tyre in its band), and 0.3 m left of it
+    /// (every tyre over a row at 0.75 m spacing, so each is costed at `corridor_weight`).
+    const CENTRED: (f64, f64) = (0.0, 0.0);
+    const OVER_A_ROW: (f64, f64) = (0.3, 0.0);
+
     fn straight() -> Path {
         let mut p = Path::with_capacity(1);
         p.push(Pose2::new(-1.0, 0.0, 0.0), 50.0, 0.0);
@@ -610,7 +654,8 @@ mod tests {
 
     #[test]
     fn adjoint_gradient_matches_finite_differences() {
-        let cfg = MpcConfig::default();
+        // With the tyres held (the opt-in term), which the default config leaves out.
+        let cfg = held();
         let mut stage = Stage::from_config(&cfg);
         let mut rng = ChaCha8Rng::seed_from_u64(7);
         stage.lateral0 = 0.25;
@@ -625,7 +670,7 @@ mod tests {
         // Far enough off the centre line for the tyres to leave their corridors; and the same with the
         // body crabbing 0.15 rad off the planned motion (a slide).
         for crab in [0.0, 0.15] {
-            stage.corridor = Corridor::new(&cfg, Some(0.75), crab);
+            stage.corridor = Corridor::new(&cfg, Some(0.75), crab, (stage.lateral0, stage.heading0));
             assert!(stage.corridor.cost(0.25, -0.12).0 > 0.0);
             let mut g = vec![0.0; u.len()];
             stage.gradient(&u, &mut g);
@@ -650,8 +695,8 @@ mod tests {
         // Sliding left at 0.2 m/m, the body points atan(0.2) ≈ 0.2 rad right of its motion: its tyres
         // sit where a robot turned by -0.2 rad would have them.
         let cfg = MpcConfig::default();
-        let crabbing = Corridor::new(&cfg, Some(0.75), 0.2);
-        let aligned = Corridor::new(&cfg, Some(0.75), 0.0);
+        let crabbing = Corridor::new(&cfg, Some(0.75), 0.2, OVER_A_ROW);
+        let aligned = Corridor::new(&cfg, Some(0.75), 0.0, (OVER_A_ROW.0, OVER_A_ROW.1 - 0.2));
         for (ey, ep) in [(0.1, 0.0), (0.25, 0.05), (-0.2, -0.1)] {
             assert_eq!(crabbing.cost(ey, ep), aligned.cost(ey, ep - 0.2), "{ey} {ep}");
         }
@@ -665,7 +710,7 @@ mod tests {
     #[test]
     fn the_wheel_corridor_costs_only_tyres_over_a_row() {
         let cfg = MpcConfig::default();
-        let corridor = Corridor::new(&cfg, Some(0.75), 0.0);
+        let corridor = Corridor::new(&cfg, Some(0.75), 0.0, OVER_A_ROW);
         // Centred: every tyre 0.762 m out, in its inter-row 0.375-1.125 m (band half-width 0.27 m).
         assert_eq!(corridor.cost(0.0, 0.0), (0.0, 0.0, 0.0));
         // 0.3 m left: the left tyres are 0.312 m from their inter-row centre, 0.042 m too far; the
@@ -675,8 +720,72 @@ mod tests {
         assert!((j - expected).abs() < 1e-9, "{j} vs {expected}");
         assert!(d_ey > 0.0 && d_ep.abs() < 1e-9, "{d_ey} {d_ep}");
         // No rows along the path, or rows too narrow for a tyre: no corridor.
-        assert_eq!(Corridor::new(&cfg, None, 0.0).cost(0.3, 0.2), (0.0, 0.0, 0.0));
-        assert_eq!(Corridor::new(&cfg, Some(0.2), 0.0).cost(0.3, 0.2), (0.0, 0.0, 0.0));
+        assert_eq!(Corridor::new(&cfg, None, 0.0, CENTRED).cost(0.3, 0.2), (0.0, 0.0, 0.0));
+        assert_eq!(Corridor::new(&cfg, Some(0.2), 0.0, CENTRED).cost(0.3, 0.2), (0.0, 0.0, 0.0));
+    }
+
+    /// The default MPC with tyres held in their inter-rows (`corridor_hold_weight`, opt-in).
+    fn held() -> MpcConfig {
+        MpcConfig { corridor_hold_weight: 6000.0, ..MpcConfig::default() }
+    }
+
+    #[test]
+    fn a_tyre_is_held_where_it_was_and_brought_back_gently() {
+        let cfg = held();
+        let extra = cfg.corridor_hold_weight - cfg.corridor_weight;
+        assert!(extra > 0.0);
+        // 0.3 m left the tyres are over the rows (see above). From the centre line that is a move out
+        // of their bands, held at `corridor_hold_weight`; for a robot already there it costs only the
+        // pull back, `corridor_weight`.
+        let from_centre = Corridor::new(&cfg, Some(0.75), 0.0, CENTRED).cost(0.3, 0.0);
+        let from_there = Corridor::new(&cfg, Some(0.75), 0.0, OVER_A_ROW).cost(0.3, 0.0);
+        let ratio = cfg.corridor_hold_weight / cfg.corridor_weight;
+        assert!((from_centre.0 - ratio * from_there.0).abs() < 1e-9, "{from_centre:?} {from_there:?}");
+        assert!((from_centre.1 - ratio * from_there.1).abs() < 1e-6, "{from_centre:?} {from_there:?}");
+        // From there, 5 cm further left is held again: each tyre's extra 0.05 m (the right ones lean
+        // towards the lane's right row) costs `extra · 0.05²` on top of the pull back.
+        let further = Corridor::new(&cfg, Some(0.75), 0.0, OVER_A_ROW).cost(0.35, 0.0).0;
+        let pull = Corridor::new(&cfg, Some(0.75), 0.0, (0.35, 0.0)).cost(0.35, 0.0).0;
+        assert!((further - pull - 4.0 * extra * 0.05f64.powi(2)).abs() < 1e-9, "{further} {pull}");
+    }
+
+    /// Drives the Frenet model on a straight lane 0.75 m wide from `lateral_m` off its centre line for
+    /// 4 s and returns the farthest any tyre went over its inter-row's band (`Corridor` geometry), m.
+    fn worst_tyre_excess(cfg: &MpcConfig, lateral_m: f64) -> f64 {
+        let mut path = straight();
+        path.set_row_spacing(Some(0.75));
+        let corridor = Corridor::new(cfg, Some(0.75), 0.0, OVER_A_ROW);
+        let mut mpc = Mpc::new(cfg.clone()).unwrap();
+        let (mut state, mut prev, mut worst) =
+            (Frenet { lateral_m, ..Frenet::default() }, Twist2::new(0.5, 0.0), 0.0f64);
+        for _ in 0..40 {
+            let sol = mpc.solve(&state, &path, 0.5, prev, None);
+            assert_ne!(sol.status, SolveStatus::Failed);
+            prev = sol.cmd;
+            state.lateral_m += cfg.step_s * prev.v * state.heading_rad.sin();
+            state.heading_rad += cfg.step_s * prev.omega;
+            state.s_m += cfg.step_s * prev.v;
+            let (sn, cs) = state.heading_rad.sin_cos();
+            for &(x, y, band, _) in &corridor.tyres {
+                worst = worst.max((state.lateral_m + x * sn + y * cs - band).abs() - corridor.half_band);
+            }
+        }
+        worst
+    }
+
+    #[test]
+    fn a_lane_that_moves_sideways_does_not_swing_a_rear_tyre_over_a_row() {
+        // The lane moved 0.2 m right under the robot (a registration correction): its tyres are still
+        // in their bands (the left ones 0.212 m off their inter-row centre, inside 0.27 m), but turning
+        // back swings the rear left tyre outwards. Held, it goes 5 mm past its band; with the single
+        // corridor weight, 12 mm. From 0.25 m (0.262 m, nearly out): 26 mm against 38.
+        let cfg = held();
+        let single = MpcConfig::default();
+        assert!(single.corridor_hold_weight <= single.corridor_weight, "holding is opt-in");
+        for (lateral_m, most_m) in [(0.2, 0.006), (0.25, 0.03)] {
+            let (held, unheld) = (worst_tyre_excess(&cfg, lateral_m), worst_tyre_excess(&single, lateral_m));
+            assert!(held < most_m && held < 0.7 * unheld, "{lateral_m}: held {held} vs {unheld}");
+        }
     }
 
     #[test]
