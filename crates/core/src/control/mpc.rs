@@ -23,13 +23,12 @@
 //! tyres off the crop: each tyre patch, at `e_y + x_w sin e_ψ + y_w cos e_ψ` from the centre line,
 //! should stay inside its inter-row, the band between two rows (rows stand `(k + ½)·spacing` to the
 //! side) narrowed by half a tyre and `row_clearance_m`; every metre outside costs
-//! `corridor_weight · excess²` per stage, and every metre further out than the tyre was when the solve
-//! began (or than its band, when it was inside) costs `corridor_hold_weight` in all (opt-in): a tyre
-//! is held where it is and brought back gently. It matters when the robot starts or drifts far off the centre
-//! line, or the lane moves under it at once: the lateral term alone would swing the rear tyres across
-//! a row on the way back. Under
-//! a slide `e_ψ` is the course's error and the body points a crab angle off it
-//! ([`Mpc::solve_crabbing`]): the tyres are placed by the body, `e_ψ − crab`.
+//! `corridor_weight · excess²` per stage, and every metre further out than the tyre was when the
+//! solve began (or than its band, when it was inside) costs `corridor_hold_weight` in all (opt-in): a
+//! tyre is held where it is and brought back gently. It matters when the robot starts or drifts far
+//! off the centre line, or the lane moves under it at once: the lateral term alone would swing the
+//! rear tyres across a row on the way back. Under a slide `e_ψ` is the course's error and the body
+//! points a crab angle off it ([`Mpc::solve_crabbing`]): the tyres are placed by the body, `e_ψ − crab`.
 //!
 //! # Constraints
 //! Decision variables are the absolute inputs `(v_k, ω_k)`. Their magnitude bounds are hard: a box
