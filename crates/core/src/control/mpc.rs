@@ -777,7 +777,8 @@ mod tests {
         // The lane moved 0.2 m right under the robot (a registration correction): its tyres are still
         // in their bands (the left ones 0.212 m off their inter-row centre, inside 0.27 m), but turning
         // back swings the rear left tyre outwards. Held, it goes 5 mm past its band; with the single
-        // corridor weight, 12 mm. From 0.25 m (0.262 m, nearly out): 26 mm against 38.
+        // corridor weight, 12 mm. From 0.25 m (0.262 m, nearly out): 26 mm against 38. The band keeps
+        // `row_clearance_m` (30 mm) from the row line, so only the unheld tyre from 0.25 m crosses it.
         let cfg = held();
         let single = MpcConfig::default();
         assert!(single.corridor_hold_weight <= single.corridor_weight, "holding is opt-in");
