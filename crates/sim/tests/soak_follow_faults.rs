@@ -200,3 +200,20 @@ fn a_gyro_bias_step_that_slides_odom_past_the_limit_stops_the_robot_before_the_c
     // as a sideways drift past `lane_switch.max_slide_per_m` (0.1): the robot stops, `sliding`.
     stopped_by_the_slide_stop(&case(404, "grown soybean 14.1 m x 6 rows 0.71 m"));
 }
+
+#[test]
+fn a_slide_from_the_first_metre_of_a_run_is_registered_from_the_start() {
+    // Grown soybean 0.70 m apart, 29 % slip and 7 cm/s sideways over x = 1.9-7.3 m, the robot set down
+    // at x = 1.8 m: it slides from its first decimetre. Registration waited for 1 m of lane, the
+    // fitted lane rested on map centroids from before the slide, and the robot, 13 cm off when the
+    // correction came, swung its rear tyre over a row turning back (3 plants). A lane found from a
+    // standstill is registered from its first keyframe with the opt-in `detector.register_from_rest`:
+    // the slide reads past `lane_switch.max_slide_per_m` within 0.6 m and the robot stops, `sliding`,
+    // clear of the rows.
+    let defaults = case(350, "grown soybean 13.7 m x 10 rows 0.70 m");
+    let mut guarded = defaults.clone();
+    guarded.navigator.detector.register_from_rest = true;
+    let outcome = provoke_then_guard(&defaults, &guarded);
+    assert_eq!(outcome.end.as_str(), "stopped: sliding", "{outcome:?}");
+    assert!(outcome.distance_m < 1.0, "{outcome:?}");
+}

@@ -267,12 +267,23 @@ pub struct DetectorConfig {
     /// drift (`fault-gyro-bias-step`: 16.6 cm worst cross-track against 6.1 off, no contact), and a few
     /// more runs stop safely at a row end (docs/faults.md, Canopy registration).
     pub register_enabled: bool,
+    /// Register a lane found while the robot stood still (its odometry twist under 0.02 m/s and
+    /// 0.02 rad/s: the start of a run, a resume) from its first keyframe, instead of after 1 m of it,
+    /// with the increments' noise estimate starting from `register_noise_m` (the first pair, which
+    /// it otherwise starts from, then comes from the robot setting off).
+    /// A lane entered after a turn always waits the metre. Default false: it cleans the soak's slides
+    /// from a run's first metre (seeds 0-1999: 45 plants in 9 runs -> 14 in 6), but a robot that
+    /// starts off its lane swings onto it, registration reads the swing as drift, and the recovery
+    /// start settles after 10.95 m instead of 2.55 and 20 m of grown soybean follow at 1.69 cm
+    /// instead of 1.37 (docs/faults.md, session 37).
+    pub register_from_rest: bool,
     /// Keyframes (one per 0.15 m driven) whose drift increments are summed for the significance test.
     /// Default 6 (0.9 m). Range [2, 60].
     pub register_window: usize,
     /// Least standard deviation of one keyframe's drift increment taken for the test, m: the test uses
     /// the noise the increments show (half the mean squared difference of successive ones, over about
-    /// 3 m), never less than this. Default 0.003 (measured on the simulated fields: 2-5 mm a keyframe
+    /// 3 m, starting from the first pair, or from this with `register_from_rest`), never less than
+    /// this. Default 0.003 (measured on the simulated fields: 2-5 mm a keyframe
     /// with the skew undone). Range [0.0005, 0.1].
     pub register_noise_m: f64,
     /// Standard errors from zero at which the window's summed drift is applied. Default 3. Range
@@ -357,6 +368,7 @@ impl Default for DetectorConfig {
             deskew_sweep_start_deg: 180.0,
             deskew_period_s: 0.1,
             register_enabled: true,
+            register_from_rest: false,
             register_window: 6,
             register_noise_m: 0.003,
             register_z: 3.0,

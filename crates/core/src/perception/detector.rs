@@ -30,8 +30,13 @@ const JUMP_SLACK_RAD: f64 = 0.1;
 const MAX_YAW_RATE_RPS: f64 = 3.0;
 /// Support (full-weight centroids) at which a default-mode row reaches confidence 1.
 const FULL_SUPPORT: f64 = 10.0;
-/// Distance driven in a lane before its canopy is registered (see `perception::register`), m.
+/// Distance driven in a lane before its canopy is registered (see `perception::register`), m; a lane
+/// found while the robot stood still is registered at once with `register_from_rest`.
 const REGISTER_MIN_LANE_M: f64 = 1.0;
+/// Odometry twist under which the robot stands still, m/s and rad/s: the wheel encoders' noise at
+/// rest, far below a creep.
+const REST_SPEED_MPS: f64 = 0.02;
+const REST_YAW_RATE_RPS: f64 = 0.02;
 /// Confidence of a row that has no support of its own and is placed by its neighbours and the spacing.
 const INFERRED_CONFIDENCE: f64 = 0.25;
 
@@ -59,6 +64,9 @@ pub struct RowDetector {
     lanes: Lanes,
     /// Canopy registration (`register_enabled`): the lanes run in its `nav` frame.
     register: Register,
+    /// The lane hypothesis last seen ([`Lanes::generation`]) and whether it was found while the robot
+    /// stood still (registered from its first keyframe, see `register_from_rest`).
+    lane_found: (u32, bool),
     centroids: Vec<[f64; 2]>,
     last: Option<(f64, Pose2)>,
     /// A pose that jumped away from `last`: accepted as the new odometry origin if the next scan agrees.
@@ -79,6 +87,7 @@ impl RowDetector {
             paper: Paper::new(&config),
             lanes: Lanes::new(&config),
             register: Register::new(),
+            lane_found: (0, false),
             centroids: Vec::with_capacity(config.map_capacity),
             last: None,
             pending_jump: None,
@@ -220,11 +229,15 @@ impl RowDetector {
     }
 
     fn detect_default(&mut self, t: f64, odom: &Pose2, twist: Option<Twist2>, mount: &Mount) -> Detection {
+        let at_rest = twist.is_some_and(|w| w.v.abs() < REST_SPEED_MPS && w.omega.abs() < REST_YAW_RATE_RPS);
         let nav = if self.config.register_enabled {
-            // Registered only against a lane that has held for a while: a fresh one may be a lattice
-            // that is not the crop's, and its frame jumps.
-            let direction =
-                self.lanes.row_direction().filter(|_| self.lanes.tracked_for_m() >= REGISTER_MIN_LANE_M);
+            // Registered only against a lane that has held for a while: one found while entering it
+            // after a turn may be a lattice that is not the crop's, and its frame jumps while the
+            // robot settles onto it. With `register_from_rest`, one found from a standstill (the start
+            // of a run) is registered at once: a slide from the first metre would otherwise run
+            // unmeasured.
+            let wait_m = if self.lane_found.1 { 0.0 } else { REGISTER_MIN_LANE_M };
+            let direction = self.lanes.row_direction().filter(|_| self.lanes.tracked_for_m() >= wait_m);
             // The returns are already deskewed when the detector deskews; otherwise registration
             // undoes the skew of the returns it registers.
             let skew = Deskew::of_twist(twist.filter(|_| !self.config.deskew), &self.config);
@@ -242,6 +255,10 @@ impl RowDetector {
             &mut self.map,
             &mut self.centroids,
         );
+        let generation = self.lanes.generation();
+        if generation != self.lane_found.0 {
+            self.lane_found = (generation, at_rest && self.config.register_from_rest);
+        }
         let at_end = out.row_end_ahead_m.is_some_and(|d| d <= self.config.end_trigger_m);
         let Some(lane) = out.lane else {
             let status = if at_end { RowStatus::EndOfRow } else { self.status_without_end(t, false, false) };

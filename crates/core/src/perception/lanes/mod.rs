@@ -255,6 +255,8 @@ pub(crate) struct Lanes {
     last_key: Option<Pose2>,
     /// Distance driven (odometry), m, and the pose it was last updated at.
     odometer_m: f64,
+    /// Counts the lane hypotheses started, so that a caller can tell a new lane from the one before.
+    generation: u32,
     last_pose: Option<Pose2>,
     /// Row end in `odom`: point on the lane centre and the row direction, rad.
     end: Option<[f64; 3]>,
@@ -327,6 +329,7 @@ impl Lanes {
             current: Vec::with_capacity(ROWS * x_bins),
             last_key: None,
             odometer_m: 0.0,
+            generation: 0,
             last_pose: None,
             end: None,
             shear_per_m: 0.0,
@@ -402,6 +405,7 @@ impl Lanes {
             self.slide_found = None;
             self.slide_onset_m = None;
             self.lane_since_m = self.odometer_m;
+            self.generation = self.generation.wrapping_add(1);
             self.near_view_m = None;
             self.near_gap_since_m = None;
             self.near_gap_scans = 0;
@@ -493,6 +497,12 @@ impl Lanes {
     /// is tracked.
     pub(crate) fn row_direction(&self) -> Option<f64> {
         self.model.map(|(lane, pose)| pose.yaw + lane.a.atan())
+    }
+
+    /// Which lane hypothesis is tracked: a number that changes whenever a new one is started (a search
+    /// after a reset or after the rows were lost).
+    pub(crate) fn generation(&self) -> u32 {
+        self.generation
     }
 
     /// Distance driven since the tracked lane was found, m (0 without a lane).
