@@ -272,7 +272,7 @@ pub struct DetectorConfig {
     /// with the increments' noise estimate starting from `register_noise_m` (the first pair, which
     /// it otherwise starts from, then comes from the robot setting off).
     /// A lane entered after a turn always waits the metre. Default false: it cleans the soak's slides
-    /// from a run's first metre (seeds 0-1999: 45 plants in 9 runs -> 14 in 6), but a robot that
+    /// from a run's first metre (seeds 0-1999: 45 plants in 9 runs -> 20 in 7), but a robot that
     /// starts off its lane swings onto it, registration reads the swing as drift, and the recovery
     /// start settles after 10.95 m instead of 2.55 and 20 m of grown soybean follow at 1.69 cm
     /// instead of 1.37 (docs/faults.md, session 37).
