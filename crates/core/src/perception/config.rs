@@ -274,8 +274,8 @@ pub struct DetectorConfig {
     /// A lane entered after a turn always waits the metre. Default false: it cleans the soak's slides
     /// from a run's first metre (seeds 0-1999: 45 plants in 9 runs -> 20 in 7), but a robot that
     /// starts off its lane swings onto it, registration reads the swing as drift, and the recovery
-    /// start settles after 10.95 m instead of 2.55 and 20 m of grown soybean follow at 1.69 cm
-    /// instead of 1.37 (docs/faults.md, session 37).
+    /// start settles after 10.95 m instead of 2.52 and 20 m of grown soybean follow at 1.69 cm
+    /// instead of 1.35 (docs/faults.md, session 37).
     pub register_from_rest: bool,
     /// Keyframes (one per 0.15 m driven) whose drift increments are summed for the significance test.
     /// Default 6 (0.9 m). Range [2, 60].
