@@ -311,6 +311,47 @@ fn entering_a_lane_that_is_not_the_planned_one_stops() {
     assert_eq!(sw.mode(), Mode::Stopped { reason: StopReason::WrongLane });
 }
 
+/// Walks the robot of [`at_next_lane_entry`] straight on along its entry while the detector sees
+/// the new lane `offset_m` to the left of the plan (within the entry tolerance, so it agrees): the
+/// robot never closes on the lane it sees. Returns the mode it ends in and the x of its front tyres'
+/// leading edge there (the new lane's rows end at x = `field().length_m`, the robot drives towards
+/// -x).
+fn walk_entry_beside_the_seen_lane(offset_m: f64, cfg: LaneSwitchConfig) -> (Mode, f64) {
+    let f = field();
+    let (mut sw, at_entry) = at_next_lane_entry(cfg.clone());
+    let mut pose = at_entry;
+    for i in 0..400 {
+        // Seen from a robot `offset_m` to the right, the rows sit that much to the left.
+        let seen_from = Pose2::new(pose.x, pose.y - offset_m, pose.yaw);
+        let g = sw.update(&pose, Some(&f.detect(i as f64 * PERIOD_S, &seen_from)));
+        if g.mode != Mode::Entering {
+            break;
+        }
+        pose.x += 0.02 * pose.yaw.cos();
+    }
+    (sw.mode(), pose.x - cfg.wheel_x_m - 0.5 * cfg.tire_length_m)
+}
+
+#[test]
+fn a_robot_too_far_off_the_lane_it_agrees_on_stops_before_its_tyres_reach_the_crop() {
+    // The lane seen lies 0.23 m off the plan: it agrees (tolerance 0.25 m) and the entry moves onto
+    // it, but the robot is still 0.23 m off it at the crop's edge, over `entry_max_offset_m` (0.2):
+    // its tyres would land on the lane's rows (soak seed 799, fault-free: 4 plants).
+    let cfg = LaneSwitchConfig::default();
+    let (mode, front_x) = walk_entry_beside_the_seen_lane(0.23, cfg.clone());
+    assert_eq!(mode, Mode::Stopped { reason: StopReason::ReentryNotConfirmed });
+    let row_ends_x = field().length_m;
+    assert!(front_x > row_ends_x, "the front tyres stopped at x {front_x:.2}, inside the crop");
+    // Closer, or with the rule off (the row spacing), the robot drives in: the lane is confirmed once
+    // the robot aligns with it, or the robot stops 1 m deep (`max_unconfirmed_entry_m`).
+    let off = LaneSwitchConfig { entry_max_offset_m: SPACING, ..cfg.clone() };
+    for (offset_m, cfg) in [(0.15, cfg), (0.23, off)] {
+        let (mode, front_x) = walk_entry_beside_the_seen_lane(offset_m, cfg);
+        assert_eq!(mode, Mode::Stopped { reason: StopReason::ReentryNotConfirmed });
+        assert!(front_x < row_ends_x - 0.5, "{offset_m} m off: stopped at x {front_x:.2}, short of the crop");
+    }
+}
+
 #[test]
 fn an_end_of_row_without_distance_assumes_the_configured_one() {
     let cfg = LaneSwitchConfig::default();

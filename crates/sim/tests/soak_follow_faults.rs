@@ -21,12 +21,12 @@ fn provoke_then_guard(unguarded: &Case, guarded: &Case) -> Outcome {
     outcome
 }
 
-/// Runs `defaults` with the slide stop off (it must run over plants) and as it is (it must stop,
+/// Runs `guarded` with the slide stop off (it must run over plants) and as it is (it must stop,
 /// `sliding`, clean).
-fn stopped_by_the_slide_stop(defaults: &Case) {
-    let mut unguarded = defaults.clone();
+fn stopped_by_the_slide_stop(guarded: &Case) {
+    let mut unguarded = guarded.clone();
     unguarded.navigator.lane_switch.max_slide_per_m = 0.0;
-    let outcome = provoke_then_guard(&unguarded, defaults);
+    let outcome = provoke_then_guard(&unguarded, guarded);
     assert_eq!(outcome.end.as_str(), "stopped: sliding", "{outcome:?}");
 }
 
@@ -141,23 +141,28 @@ fn a_whole_scan_has_no_hole_to_hold() {
 }
 
 #[test]
-fn registration_with_an_end_fraction_leaves_out_the_bands_where_the_canopy_ends() {
-    // Young soybean, no fault, registration on (the default). Driving towards the row end, the far bands of the
-    // registered stretch reached past the canopy's end and their profiles leaned to one side: the
-    // window applied a 7 cm drift 3 m before the row end, the robot swerved and a wheel took a plant.
-    // With `register_end_fraction` 0.3 (opt-in: the 1000-run soak does not show it better), the far
-    // bands under 30 % of the fullest band's weight are left out.
-    // Both runs have the slide test on, as when this was traced: with it off (the default since
-    // session 28) the defaults drive the field clean (measured).
-    // Both go without the slide stop (`lane_switch.max_slide_per_m`, on by default since session 30),
-    // which stops the robot at the leaning drift.
+fn registration_leaves_out_the_bands_past_the_row_end() {
+    // Young soybean, no fault. Driving towards the row end, the far bands of the registered stretch
+    // reached past the canopy's end and their profiles leaned to one side: the window applied a 7 cm
+    // drift 3 m before the row end, the robot swerved and a wheel took a plant. Since session 38 the
+    // bands past the row end the lane pipeline found are not compared (`register_before_row_end`);
+    // `register_end_fraction` 0.3 (opt-in, session 20) leaves out the emptier far bands and guards
+    // it too.
+    // All runs have the slide test on, as when this was traced, and go without the slide stop
+    // (`lane_switch.max_slide_per_m`, on by default since session 30), which stops the robot at the
+    // leaning drift.
     let mut unguarded = case(662, "young soybean 13.8 m x 5 rows 0.78 m");
     unguarded.navigator.detector.shear_window_m = 0.5;
     unguarded.navigator.lane_switch.max_slide_per_m = 0.0;
-    let mut guarded = unguarded.clone();
-    guarded.navigator.detector.register_end_fraction = 0.3;
-    let outcome = provoke_then_guard(&unguarded, &guarded);
+    unguarded.navigator.detector.register_before_row_end = false;
+    let mut before_the_end = unguarded.clone();
+    before_the_end.navigator.detector.register_before_row_end = true;
+    let outcome = provoke_then_guard(&unguarded, &before_the_end);
     assert_eq!(outcome.end.as_str(), "done", "{outcome:?}");
+    let mut end_fraction = unguarded.clone();
+    end_fraction.navigator.detector.register_end_fraction = 0.3;
+    let outcome = run_case(&end_fraction).expect("runs");
+    assert_eq!((outcome.crop_contacts, outcome.end.as_str()), (0, "done"), "{outcome:?}");
 }
 
 #[test]
@@ -196,9 +201,17 @@ fn a_wheel_slide_past_the_limit_stops_the_robot_before_the_crop() {
 #[test]
 fn a_gyro_bias_step_that_slides_odom_past_the_limit_stops_the_robot_before_the_crop() {
     // Grown soybean 0.71 m apart, a -0.014 rad/s gyro step at x = 2 m: odom turned, the row map
-    // bent with it and a tyre took 2 plants 11.3 m into the run. Registration reads the turn of odom
-    // as a sideways drift past `lane_switch.max_slide_per_m` (0.1): the robot stops, `sliding`.
-    stopped_by_the_slide_stop(&case(404, "grown soybean 14.1 m x 6 rows 0.71 m"));
+    // bent with it and a tyre took 2 plants 11.3 m into the run, 1.2 m before the row end.
+    // Registration read the turn of odom and the canopy ending in its far bands as a sideways drift
+    // past `lane_switch.max_slide_per_m` (0.1): the robot stops, `sliding`. Both runs compare every
+    // band, as before session 38; leaving out the bands past the row end (the default since), the
+    // robot drives the field clean and is not stopped.
+    let defaults = case(404, "grown soybean 14.1 m x 6 rows 0.71 m");
+    let mut every_band = defaults.clone();
+    every_band.navigator.detector.register_before_row_end = false;
+    stopped_by_the_slide_stop(&every_band);
+    let outcome = run_case(&defaults).expect("runs");
+    assert_eq!((outcome.crop_contacts, outcome.end.as_str()), (0, "done"), "{outcome:?}");
 }
 
 #[test]

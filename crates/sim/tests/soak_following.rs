@@ -274,13 +274,20 @@ fn a_lane_entered_on_a_fit_that_turns_off_the_planned_direction_is_searched_agai
     // rows by the first scan followed, and the robot followed it across two rows (13 plants,
     // `wrong_lane`). Held to the planned direction (`lane_switch.entry_heading_watch_m`), the
     // entry asks the detector to search again and the robot drives all three lanes clean.
-    let case = soak_case(765);
-    assert!(case.scenario.summary.starts_with("grown corn 11.5 m x 8 rows 0.71 m apart"));
-    let mut unheld = case.clone();
+    // Both runs compare every band of the canopy registration, as before session 38: leaving out
+    // the bands past the row end (the default since) the robot reaches that entry on another path
+    // and drives the field clean without the watch too.
+    let defaults = soak_case(765);
+    assert!(defaults.scenario.summary.starts_with("grown corn 11.5 m x 8 rows 0.71 m apart"));
+    let mut held = defaults.clone();
+    held.navigator.detector.register_before_row_end = false;
+    let mut unheld = held.clone();
     unheld.navigator.lane_switch.entry_heading_watch_m = 0.0;
     let before = run_case(&unheld).expect("runs");
     assert!(before.crop_contacts > 0, "the case no longer provokes the failure: {before:?}");
-    let o = run_case(&case).expect("runs");
-    assert_eq!((o.crop_contacts, o.unsafe_commands), (0, 0), "{o:?}");
-    assert_eq!(o.end, "done", "{o:?}");
+    for case in [held, defaults] {
+        let o = run_case(&case).expect("runs");
+        assert_eq!((o.crop_contacts, o.unsafe_commands), (0, 0), "{o:?}");
+        assert_eq!(o.end, "done", "{o:?}");
+    }
 }

@@ -269,22 +269,31 @@ pub struct DetectorConfig {
     pub register_enabled: bool,
     /// Register a lane found while the robot stood still (its odometry twist under 0.02 m/s and
     /// 0.02 rad/s: the start of a run, a resume) from its first keyframe, instead of after 1 m of it,
-    /// with the increments' noise estimate starting from `register_noise_m` (the first pair, which
-    /// it otherwise starts from, then comes from the robot setting off).
-    /// A lane entered after a turn always waits the metre. Default false: it cleans the soak's slides
-    /// from a run's first metre (seeds 0-1999: 45 plants in 9 runs -> 20 in 7), but a robot that
-    /// starts off its lane swings onto it, registration reads the swing as drift, and the recovery
-    /// start settles after 10.95 m instead of 2.52 and 20 m of grown soybean follow at 1.69 cm
-    /// instead of 1.35 (docs/faults.md, session 37).
+    /// with the increments' noise estimate starting from twice `register_noise_m` (the first pair,
+    /// which it otherwise starts from, then comes from the robot setting off).
+    /// A lane entered after a turn always waits the metre. Default false: it cleans most slides from
+    /// a run's first metre (soak seeds 0-999: 7 plants in 3 runs against 12 in 8 without it, session
+    /// 38), but registration fires more often with the true odometry under a closed canopy, and the
+    /// 200 m grown-soybean run of Table I follows at 1.27 cm instead of 1.04 (the paper: 1.24), and
+    /// a slide under the slide stop's limit in young soybean is missed for longer (soak seed 152).
+    /// docs/faults.md, sessions 37 and 38.
     pub register_from_rest: bool,
+    /// Compare only the bands of the registered stretch that lie before the row end the lane
+    /// pipeline found, with a band (0.25 m) to spare. Where the canopy ends inside a band its
+    /// profiles lean to one side with the true odometry, the plants there seen from a changing
+    /// distance: fault-free soak seed 662 took a 7 cm drift 3 m before its row end and ran over a
+    /// plant, seed 404 (a gyro bias step) read the last 2 m of its lane as a slide, and the recovery
+    /// start registered from rest applied 2.5 cm 2.5 m before the end of its 12 m of rows. Default
+    /// true (session 38; docs/faults.md). With false every band is compared, as before.
+    pub register_before_row_end: bool,
     /// Keyframes (one per 0.15 m driven) whose drift increments are summed for the significance test.
     /// Default 6 (0.9 m). Range [2, 60].
     pub register_window: usize,
     /// Least standard deviation of one keyframe's drift increment taken for the test, m: the test uses
     /// the noise the increments show (half the mean squared difference of successive ones, over about
-    /// 3 m, starting from the first pair, or from this with `register_from_rest`), never less than
-    /// this. Default 0.003 (measured on the simulated fields: 2-5 mm a keyframe
-    /// with the skew undone). Range [0.0005, 0.1].
+    /// 3 m, starting from the first pair, or from twice this with `register_from_rest`), never less
+    /// than this. Default 0.003 (measured on the simulated fields: 2-5 mm a keyframe with the skew
+    /// undone). Range [0.0005, 0.1].
     pub register_noise_m: f64,
     /// Standard errors from zero at which the window's summed drift is applied. Default 3. Range
     /// [0.5, 20].
@@ -369,6 +378,7 @@ impl Default for DetectorConfig {
             deskew_period_s: 0.1,
             register_enabled: true,
             register_from_rest: false,
+            register_before_row_end: true,
             register_window: 6,
             register_noise_m: 0.003,
             register_z: 3.0,

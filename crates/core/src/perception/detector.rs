@@ -241,7 +241,15 @@ impl RowDetector {
             // The returns are already deskewed when the detector deskews; otherwise registration
             // undoes the skew of the returns it registers.
             let skew = Deskew::of_twist(twist.filter(|_| !self.config.deskew), &self.config);
-            self.register.step(&self.pre.cropped, odom, direction, skew.map(|d| (d, mount)), &self.config)
+            let row_end = self.lanes.row_end().filter(|_| self.config.register_before_row_end);
+            self.register.step(
+                &self.pre.cropped,
+                odom,
+                direction,
+                row_end,
+                skew.map(|d| (d, mount)),
+                &self.config,
+            )
         } else {
             *odom
         };

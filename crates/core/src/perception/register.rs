@@ -17,7 +17,8 @@
 //! beside where the odometry puts it: the odometry's sideways drift since the keyframe. With the true
 //! odometry the increments scatter about zero (±1.5 mm on the unit tests' synthetic canopy, about
 //! ±1 cm on the weedy young soybean of soak seed 662, and leaning to one side where the canopy ends
-//! inside the bands, which `register_end_fraction` leaves out when set: docs/faults.md). Under a
+//! inside the bands: the bands past a row end that the lane pipeline found are not compared, and
+//! `register_end_fraction` also leaves out the emptier far bands when set: docs/faults.md). Under a
 //! slide they lean to one side by the slide times the keyframe distance (a little less: the sensor
 //! sees the plants from where it truly is, so their visible flanks move less than the plants).
 //!
@@ -61,6 +62,13 @@ const MAX_INCREMENT_M: f64 = 0.05;
 /// not a full window of 6: waiting for six let a wheel slide from the first metres of a lane take 3
 /// plants (soak seed 8).
 const MIN_TESTED: usize = 4;
+/// Where the noise estimate of a lane registered from a standstill starts, in `register_noise_m`: 6 mm
+/// by default, the increments' scatter with the true odometry (standard deviations of 4.9-7.3 mm by
+/// crop over 20,000 keyframes of 144 soak runs without a slip patch). Starting from
+/// `register_noise_m` itself, two increments of -13 and -14 mm 1.4 m into 20 m of grown soybean
+/// passed as a drift, and the robot swung onto the correction (1.69 cm cross-track mean instead of
+/// 1.35).
+const FROM_REST_NOISE: f64 = 2.0;
 /// Weight of a new increment in the running noise estimate (a memory of about 20 keyframes, 3 m).
 const NOISE_GAIN: f64 = 0.05;
 /// Lags searched, bins either side: 6 cm, the drift of 0.4 m per metre over a keyframe; and in the
@@ -70,6 +78,9 @@ const REFINE_LAG_BINS: i64 = 3;
 /// Lowest return registered, m above the canopy plane: the ground and stubble between the rows
 /// carry no lateral structure.
 const MIN_HEIGHT_M: f32 = 0.08;
+/// Distance kept from the row end the lane pipeline found to the far edge of the last band compared,
+/// m: one band.
+const ROW_END_MARGIN_M: f64 = 0.25;
 /// Least summed height-squared weight of a band's profile in both scans for it to be compared, m²:
 /// about 50 canopy returns 0.3 m high.
 const MIN_BAND_WEIGHT_M2: f64 = 1.0;
@@ -149,13 +160,15 @@ impl Register {
     }
 
     /// One scan: `canopy` points `(x, y, h)` in `base_link`, the odometry pose, the direction of the
-    /// tracked rows in `nav` (none: no lane, nothing to register against), and the scan's motion skew
-    /// with the sensor mount when the points still carry it. Returns the `nav` pose.
+    /// tracked rows in `nav` (none: no lane, nothing to register against), where the lane's canopy
+    /// ends, `(x, y)` in `nav`, when the lane pipeline has found it, and the scan's motion skew with the
+    /// sensor mount when the points still carry it. Returns the `nav` pose.
     pub(crate) fn step(
         &mut self,
         canopy: &[[f32; 3]],
         odom: &Pose2,
         direction: Option<f64>,
+        row_end: Option<[f64; 2]>,
         skew: Option<(Deskew, &Mount)>,
         config: &DetectorConfig,
     ) -> Pose2 {
@@ -179,9 +192,10 @@ impl Register {
             // reads a drift 10-20 % short (the parabola through a broad correlation peak), two within
             // 1-4 % (measured on the simulated fields, 15 mm increments).
             let end = config.register_end_fraction;
-            let refined = self.compare(&key, weights, MAX_LAG_BINS, end).and_then(|first| {
+            let bands = bands_before(row_end, &key);
+            let refined = self.compare(&key, weights, bands, MAX_LAG_BINS, end).and_then(|first| {
                 let weights = self.fill(&nav, &key.pose, key.direction, first);
-                self.compare(&key, weights, REFINE_LAG_BINS, end).map(|rest| first + rest)
+                self.compare(&key, weights, bands, REFINE_LAG_BINS, end).map(|rest| first + rest)
             });
             // A drift of more than the largest plausible slide over one keyframe is a view that changed
             // (a lane hypothesis that jumped, the canopy ending), not drift: it also empties the window.
@@ -264,15 +278,16 @@ impl Register {
     }
 
     /// The lateral shift of the scratch profiles against the keyframe's, m (positive: this scan's canopy
-    /// lies to the left of the keyframe's), the mean over the bands that can be compared, up to the
-    /// farthest band whose weight is at least `end_fraction` of the fullest band's: the bands past it
-    /// hold where the canopy ends, and profiles of a canopy ending inside the bands lean to one side
-    /// (increments of +1 to +2 cm a keyframe on the fault-free soak seed 662, where they scatter ±1 cm
-    /// elsewhere, applied as a 7 cm drift 3 m before the row end).
+    /// lies to the left of the keyframe's), the mean over the first `bands` bands that can be compared,
+    /// up to the farthest band whose weight is at least `end_fraction` of the fullest band's: the bands
+    /// past it hold where the canopy ends, and profiles of a canopy ending inside the bands lean to one
+    /// side (increments of +1 to +2 cm a keyframe on the fault-free soak seed 662, where they scatter
+    /// ±1 cm elsewhere, applied as a 7 cm drift 3 m before the row end).
     fn compare(
         &self,
         key: &Keyframe,
         weights: [f64; NBANDS],
+        bands: usize,
         max_lag: i64,
         end_fraction: f64,
     ) -> Option<f64> {
@@ -281,7 +296,8 @@ impl Register {
         // canopy ends (a row end) past the farthest one that is not much emptier than the fullest.
         let least: [f64; NBANDS] = std::array::from_fn(|b| weights[b].min(key.weights[b]));
         let fullest = least.iter().copied().fold(0.0, f64::max);
-        let compared = least.iter().rposition(|&w| w >= end_fraction * fullest).map_or(0, |b| b + 1);
+        let compared =
+            least.iter().rposition(|&w| w >= end_fraction * fullest).map_or(0, |b| b + 1).min(bands);
         let bands = weights.iter().zip(&key.weights).zip(self.key_profiles.iter().zip(&self.scratch));
         for ((&weight, &key_weight), (key_profile, profile)) in bands.take(compared) {
             if weight < MIN_BAND_WEIGHT_M2 || key_weight < MIN_BAND_WEIGHT_M2 {
@@ -303,8 +319,13 @@ impl Register {
             // After a metre of following, the first pair is a fair start for the mean. Registering
             // from a standstill, it comes from the robot setting off: a first pair of 11 and -9 mm
             // (soak seed 322) held the test deaf to a slide 5 m later, the mean still twice the
-            // noise there, so the mean then starts from the configured noise.
-            let start = if config.register_from_rest { config.register_noise_m.powi(2) } else { d2 };
+            // noise there. The mean then starts from the scatter the increments show over the
+            // canopies (see [`FROM_REST_NOISE`]).
+            let start = if config.register_from_rest {
+                (FROM_REST_NOISE * config.register_noise_m).powi(2)
+            } else {
+                d2
+            };
             let n = self.noise2.unwrap_or(start);
             self.noise2 = Some(n + NOISE_GAIN * (d2 - n));
         }
@@ -335,6 +356,22 @@ impl Register {
         self.drift.correction[0] -= s * unapplied;
         self.drift.correction[1] += c * unapplied;
     }
+}
+
+/// How many bands of keyframe `key` lie wholly before the row end `row_end` (`(x, y)` in `nav`) with
+/// [`ROW_END_MARGIN_M`] to spare: the profiles of the band where the canopy ends lean to one side,
+/// the plants there seen from a changing distance (increments of -9, -9 and -5 mm with the true
+/// odometry 2.5-3 m before a young-corn row end, summed into a 2.5 cm correction that the robot
+/// followed off the centre line: the recovery start on 12 m of rows, registered from its first
+/// keyframe, session 38). All of them when the lane pipeline has not found the end.
+fn bands_before(row_end: Option<[f64; 2]>, key: &Keyframe) -> usize {
+    let Some([ex, ey]) = row_end else { return NBANDS };
+    let (s, c) = key.direction.sin_cos();
+    let ahead = c * (ex - key.pose.x) + s * (ey - key.pose.y) - ROW_END_MARGIN_M - BAND_START_M;
+    if ahead.is_nan() || ahead <= 0.0 {
+        return 0;
+    }
+    ((ahead / BAND_M) as usize).min(NBANDS)
 }
 
 /// `out` = `profile` smoothed with a triangular kernel of half-width [`SMOOTH_BINS`], the terms past
@@ -443,7 +480,7 @@ mod tests {
             let x = 0.05 * step as f64;
             let truth = Pose2::new(x, 0.0, 0.0);
             let odom = Pose2::new(x, slide * (x - 1.0).max(0.0), 0.0);
-            let nav = register.step(&canopy(&truth), &odom, Some(0.0), None, &config);
+            let nav = register.step(&canopy(&truth), &odom, Some(0.0), None, None, &config);
             if x >= settle_m {
                 worst = worst.max(nav.y.abs());
             }
@@ -499,9 +536,10 @@ mod tests {
     fn one_noisy_pair_of_increments_does_not_deafen_the_test() {
         // A run's first two keyframes read 11.4 and -9.1 mm (soak seed 322), then the odometry was
         // true for 4.5 m (±1 mm), then the wheels slid 8 cm per metre (12 mm a keyframe). Registering
-        // from a standstill, the noise estimate starts from `register_noise_m`, so the slide is
-        // applied at its second keyframe; started from the first pair (after a metre of following,
-        // the default), the estimate still held that pair and the test waited for a fourth.
+        // from a standstill, the noise estimate starts from the increments' usual scatter
+        // ([`FROM_REST_NOISE`]), so the slide is applied at its third keyframe; started from the
+        // first pair (after a metre of following, the default), the estimate still held that pair
+        // and the test waited for a fourth.
         let slide_applied_after = |register_from_rest| {
             let config =
                 DetectorConfig { register_enabled: true, register_from_rest, ..DetectorConfig::default() };
@@ -517,7 +555,7 @@ mod tests {
                 register.drift().slide_per_m.is_some()
             })
         };
-        assert_eq!(slide_applied_after(true), Some(2));
+        assert_eq!(slide_applied_after(true), Some(3));
         assert_eq!(slide_applied_after(false), Some(4));
     }
 
@@ -531,7 +569,7 @@ mod tests {
             // The odometry drifts by 5 cm a keyframe, but the rows' direction swings by 0.1 rad each
             // keyframe: every comparison is refused.
             let odom = Pose2::new(x, 0.3 * x, 0.0);
-            register.step(&canopy(&truth), &odom, Some(0.1 * (step / 3) as f64), None, &config);
+            register.step(&canopy(&truth), &odom, Some(0.1 * (step / 3) as f64), None, None, &config);
         }
         assert_eq!(register.drift().correction, [0.0, 0.0]);
     }
@@ -556,10 +594,42 @@ mod tests {
             register.scratch.push(crest(shift));
         }
         let key = Keyframe { pose: Pose2::new(0.0, 0.0, 0.0), direction: 0.0, weights };
-        let all = register.compare(&key, weights, MAX_LAG_BINS, 0.0).expect("bands to compare");
+        let all = register.compare(&key, weights, NBANDS, MAX_LAG_BINS, 0.0).expect("bands to compare");
         assert!(all > 0.003, "the leaning band counts when every band is compared: {all}");
-        let up_to_end = register.compare(&key, weights, MAX_LAG_BINS, 0.3).expect("bands to compare");
+        let up_to_end = register.compare(&key, weights, NBANDS, MAX_LAG_BINS, 0.3).expect("bands to compare");
         assert!(up_to_end.abs() < 1e-9, "{up_to_end}");
+    }
+
+    #[test]
+    fn the_bands_past_the_row_end_the_lanes_found_are_left_out() {
+        // The lanes found the canopy's end 3 m ahead of the keyframe, along its rows: with a band to
+        // spare, the bands up to 2.75 m ahead are compared (the first three: 1.9-2.65 m). The fourth
+        // holds the end and leans 3 cm to the left.
+        let direction = 0.3_f64;
+        let pose = Pose2::new(1.0, 2.0, direction + 0.05);
+        let ahead = |d: f64| [pose.x + d * direction.cos(), pose.y + d * direction.sin()];
+        let crest = |shift: f64| -> Vec<f64> {
+            (0..BINS).map(|i| (-((i as f64 - 500.0 - shift) / 8.0).powi(2)).exp()).collect()
+        };
+        let mut register = Register::new();
+        for band in 0..NBANDS {
+            register.key_profiles.push(crest(0.0));
+            register.scratch.push(crest(if band == 3 { 6.0 } else { 0.0 }));
+        }
+        let weights = [10.0; NBANDS];
+        let key = Keyframe { pose, direction, weights };
+        assert_eq!(bands_before(None, &key), NBANDS, "no end found: every band");
+        assert_eq!(bands_before(Some(ahead(3.0)), &key), 3);
+        assert_eq!(bands_before(Some(ahead(2.3)), &key), 0, "the end inside the first band");
+        assert_eq!(bands_before(Some(ahead(-1.0)), &key), 0, "the end behind the keyframe");
+        assert_eq!(bands_before(Some(ahead(40.0)), &key), NBANDS);
+        assert_eq!(bands_before(Some([f64::NAN, 0.0]), &key), 0, "a non-finite end compares nothing");
+        let all = register.compare(&key, weights, NBANDS, MAX_LAG_BINS, 0.0).expect("bands to compare");
+        assert!(all > 0.002, "the band holding the end leans: {all}");
+        let bands = bands_before(Some(ahead(3.0)), &key);
+        let before_end = register.compare(&key, weights, bands, MAX_LAG_BINS, 0.0).expect("bands to compare");
+        assert!(before_end.abs() < 1e-9, "{before_end}");
+        assert_eq!(register.compare(&key, weights, 0, MAX_LAG_BINS, 0.0), None, "no band: no increment");
     }
 
     #[test]

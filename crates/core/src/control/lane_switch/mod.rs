@@ -1239,7 +1239,10 @@ impl LaneSwitcher {
             // Until a detection agrees with the plan, the robot drives on odometry alone: its front
             // tyres stay out of the new lane's crop.
             let front_m = along(&end, odom) - self.cfg.wheel_x_m - 0.5 * self.cfg.tire_length_m;
-            let blind_limit = !self.entry_anchored
+            // Nor do they go in while the robot is too far off the lane the detector agrees on: the
+            // tyres would land on its rows.
+            let off_lane = f.lateral_m.abs() > self.cfg.entry_max_offset_m;
+            let blind_limit = (!self.entry_anchored || off_lane)
                 && self.cfg.pivots()
                 && front_m < self.entry_row_end_m + self.cfg.clearance_margin_m;
             if blind_limit || -along(&end, odom) > self.cfg.max_unconfirmed_entry_m {

@@ -499,6 +499,12 @@ impl Lanes {
         self.model.map(|(lane, pose)| pose.yaw + lane.a.atan())
     }
 
+    /// Where the tracked lane's canopy ends, `(x, y)` in the frame of the poses given to
+    /// [`Lanes::step`], when the last scan saw the end.
+    pub(crate) fn row_end(&self) -> Option<[f64; 2]> {
+        self.end.filter(|_| self.model.is_some()).map(|[x, y, _]| [x, y])
+    }
+
     /// Which lane hypothesis is tracked: a number that changes whenever a new one is started (a search
     /// after a reset or after the rows were lost).
     pub(crate) fn generation(&self) -> u32 {
