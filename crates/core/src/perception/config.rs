@@ -281,10 +281,11 @@ pub struct DetectorConfig {
     /// Compare only the bands of the registered stretch that lie before the row end the lane
     /// pipeline found, with a band (0.25 m) to spare. Where the canopy ends inside a band its
     /// profiles lean to one side with the true odometry, the plants there seen from a changing
-    /// distance: fault-free soak seed 662 took a 7 cm drift 3 m before its row end and ran over a
-    /// plant, seed 404 (a gyro bias step) read the last 2 m of its lane as a slide, and the recovery
-    /// start registered from rest applied 2.5 cm 2.5 m before the end of its 12 m of rows. Default
-    /// true (session 38; docs/faults.md). With false every band is compared, as before.
+    /// distance: fault-free soak seed 662 (the slide test on) took a 7 cm drift 3 m before its row
+    /// end and ran over a plant, seed 404 (a gyro bias step) read the last 2 m of its lane as a
+    /// slide, and the recovery start registered from rest applied 2.5 cm 2.5 m before the end of
+    /// its 12 m of rows. Default true (session 38; docs/faults.md). With false every band is
+    /// compared, as before.
     pub register_before_row_end: bool,
     /// Keyframes (one per 0.15 m driven) whose drift increments are summed for the significance test.
     /// Default 6 (0.9 m). Range [2, 60].
