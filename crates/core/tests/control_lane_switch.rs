@@ -342,8 +342,8 @@ fn a_robot_too_far_off_the_lane_it_agrees_on_stops_before_its_tyres_reach_the_cr
     assert_eq!(mode, Mode::Stopped { reason: StopReason::ReentryNotConfirmed });
     let row_ends_x = field().length_m;
     assert!(front_x > row_ends_x, "the front tyres stopped at x {front_x:.2}, inside the crop");
-    // Closer, or with the rule off (the row spacing), the robot drives in: the lane is confirmed once
-    // the robot aligns with it, or the robot stops 1 m deep (`max_unconfirmed_entry_m`).
+    // Closer, or with the rule off (the row spacing), the robot drives in; walked straight on, it
+    // never aligns to confirm the lane and stops 1 m deep (`max_unconfirmed_entry_m`).
     let off = LaneSwitchConfig { entry_max_offset_m: SPACING, ..cfg.clone() };
     for (offset_m, cfg) in [(0.15, cfg), (0.23, off)] {
         let (mode, front_x) = walk_entry_beside_the_seen_lane(offset_m, cfg);

@@ -274,9 +274,9 @@ fn a_lane_entered_on_a_fit_that_turns_off_the_planned_direction_is_searched_agai
     // rows by the first scan followed, and the robot followed it across two rows (13 plants,
     // `wrong_lane`). Held to the planned direction (`lane_switch.entry_heading_watch_m`), the
     // entry asks the detector to search again and the robot drives all three lanes clean.
-    // Both runs compare every band of the canopy registration, as before session 38: leaving out
-    // the bands past the row end (the default since) the robot reaches that entry on another path
-    // and drives the field clean without the watch too.
+    // The provoking run and the held one compare every band of the canopy registration, as before
+    // session 38: leaving out the bands past the row end (the default since) the robot reaches that
+    // entry on another path and drives the field clean without the watch too.
     let defaults = soak_case(765);
     assert!(defaults.scenario.summary.starts_with("grown corn 11.5 m x 8 rows 0.71 m apart"));
     let mut held = defaults.clone();

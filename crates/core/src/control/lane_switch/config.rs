@@ -104,9 +104,8 @@ pub struct LaneSwitchConfig {
     /// detection agrees. Default 0.2: the tyres keep about 0.29 m to the rows at a 0.79 m spacing,
     /// and the robot's heading and the plants' width take the rest. Fault-free soak seed 799 agreed
     /// on a lane 0.23 m from its plan after a 3 m headland crossing (its odometry over-reads
-    /// distance by 5 %), was still 0.3 m off it when its tyres reached the crop, and ran over 4
-    /// plants.
-    /// The row spacing lets the robot in at any offset.
+    /// distance by 5 %), was still 0.28-0.30 m off it when its tyres reached the crop, and ran over
+    /// 4 plants. The row spacing lets the robot in at any offset.
     pub entry_max_offset_m: f64,
     /// Consistent detections needed to confirm a lane (and inconsistent ones to refuse it). Default 3.
     pub entry_confirmations: u32,
