@@ -436,15 +436,31 @@ fn rows_turning_off_the_planned_lane_while_entering_are_searched_again() {
 
 #[test]
 fn rows_turning_just_after_the_entry_stop_the_robot_within_the_watch() {
+    // The entry's watch alone: the watch over the whole lane (`max_row_turn_rad`) is off here.
+    let entry_watch = LaneSwitchConfig { max_row_turn_rad: 0.0, ..LaneSwitchConfig::default() };
     let turned_after_entry = |cfg| enter_with_rows_turning(cfg, 0.0, 0.2, 0.5, 4.0);
     // Confirmed on straight rows, then 0.15 rad off by 1.25 m: inside the 2 m watch.
-    let (mode, walked, _) = turned_after_entry(LaneSwitchConfig::default());
+    let (mode, walked, _) = turned_after_entry(entry_watch.clone());
     assert_eq!(mode, Mode::Stopped { reason: StopReason::WrongLane });
     assert!((1.25..=1.35).contains(&walked), "stopped after {walked:.2} m");
     // Without the watch the same rows are followed.
-    let off = LaneSwitchConfig { entry_heading_watch_m: 0.0, ..LaneSwitchConfig::default() };
+    let off = LaneSwitchConfig { entry_heading_watch_m: 0.0, ..entry_watch.clone() };
     assert_eq!(turned_after_entry(off).0, Mode::Following);
     // Rows that turn once the watch is over (curved rows further in) are followed too.
-    let (mode, ..) = enter_with_rows_turning(LaneSwitchConfig::default(), 0.0, 0.2, 2.5, 4.0);
+    let (mode, ..) = enter_with_rows_turning(entry_watch, 0.0, 0.2, 2.5, 4.0);
     assert_eq!(mode, Mode::Following);
+}
+
+#[test]
+fn rows_that_turn_faster_than_crop_rows_bend_stop_the_robot_anywhere_in_the_lane() {
+    // Past the entry's watch, rows turning 0.2 rad/m from 2.5 m in (a fit that took up weeds in a
+    // gap, soak seeds 324 and 680) have turned 0.1 rad a metre later: the robot stops there.
+    let (mode, walked, _) = enter_with_rows_turning(LaneSwitchConfig::default(), 0.0, 0.2, 2.5, 5.0);
+    assert_eq!(mode, Mode::Stopped { reason: StopReason::WrongLane });
+    assert!((3.0..=3.8).contains(&walked), "stopped after {walked:.2} m");
+    // Rows bending like the paper's curved field (0.024 rad/m), or twice that, are followed.
+    for rate in [0.024, 0.05] {
+        let (mode, ..) = enter_with_rows_turning(LaneSwitchConfig::default(), 0.0, rate, 2.5, 5.0);
+        assert_eq!(mode, Mode::Following, "{rate} rad/m");
+    }
 }

@@ -287,6 +287,16 @@ pub struct DetectorConfig {
     /// its 12 m of rows. Default true (session 38; docs/faults.md). With false every band is
     /// compared, as before.
     pub register_before_row_end: bool,
+    /// When the window's drift becomes significant, apply with it the increments that left the
+    /// window unapplied just before, back to the likeliest onset of the drift (the newest of them
+    /// that make the sum most significant, at most `register_window`). A slide passes the test some
+    /// keyframes after it starts, and its first increments were dropped as noise: soak seed 777 (a
+    /// 0.12 m/m slide) kept its lane 2.7 cm off after the correction. Default false: a window that
+    /// passes on noise is extended by noise too, and the 200 m grown-soybean run of Table I follows
+    /// at 1.33 cm instead of 1.04 with it (the paper: 1.24); with `register_from_rest` and
+    /// `mpc.row_clearance_m` = 0.09 as well, 1.20 cm, and soak seeds 0-999 ran over 3 plants in 1
+    /// run (session 39, docs/faults.md).
+    pub register_from_onset: bool,
     /// Keyframes (one per 0.15 m driven) whose drift increments are summed for the significance test.
     /// Default 6 (0.9 m). Range [2, 60].
     pub register_window: usize,
@@ -380,6 +390,7 @@ impl Default for DetectorConfig {
             register_enabled: true,
             register_from_rest: false,
             register_before_row_end: true,
+            register_from_onset: false,
             register_window: 6,
             register_noise_m: 0.003,
             register_z: 3.0,

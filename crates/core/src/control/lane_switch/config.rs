@@ -263,6 +263,17 @@ pub struct LaneSwitchConfig {
     /// of the headland, or a heading the odometry lost in the turn (an unlearnt gyro bias step), are
     /// refused too. Default 2; 0 turns the hold off (the entry compares each scan with the last only).
     pub entry_heading_watch_m: f64,
+    /// Most the followed rows may turn in `odom` over 1 m driven with rows seen, rad: past it, twice
+    /// in a row the same way round (one measurement every 0.25 m), the robot stops (`wrong_lane`).
+    /// Crop rows bend gently (the paper's curved field at most 0.024 rad per metre, the soak's under
+    /// 0.004) and an unlearnt gyro bias turns `odom` by its error over the speed (the soak's largest
+    /// steps, 0.027 rad/s at 0.5 m/s: 0.054 rad/m); a fit that turns faster follows something else.
+    /// Where a gap crosses every row, a strip of tall weeds in it took the fit 0.14-0.15 rad round
+    /// within a metre, and the robot followed it over a plant (soak seeds 324 and 680). Not checked
+    /// within `end_approach_m` of a row end the detector has seen: a fit found again there after a
+    /// LiDAR dropout, on the last 2 m of rows, ran 0.2 rad off (`fault-lidar-dropout`), and the line
+    /// is carried to the end there. Default 0.1; 0 turns the watch off.
+    pub max_row_turn_rad: f64,
 }
 
 impl Default for LaneSwitchConfig {
@@ -316,6 +327,7 @@ impl Default for LaneSwitchConfig {
             max_slide_per_m: 0.1,
             max_following_curvature_per_m: 0.0,
             entry_heading_watch_m: 2.0,
+            max_row_turn_rad: 0.1,
         }
     }
 }
@@ -368,6 +380,7 @@ impl LaneSwitchConfig {
             100.0,
         )?;
         check_range("lane_switch.entry_heading_watch_m", self.entry_heading_watch_m, 0.0, 1000.0)?;
+        check_range("lane_switch.max_row_turn_rad", self.max_row_turn_rad, 0.0, std::f64::consts::PI)?;
         check_range("lane_switch.gap_margin_m", self.gap_margin_m, 0.0, 10.0)?;
         check_range(
             "lane_switch.gap_rows",

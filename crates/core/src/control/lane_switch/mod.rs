@@ -144,7 +144,9 @@ pub enum StopReason {
     NoRows,
     /// The new lane was not confirmed before `base_link` went `max_unconfirmed_entry_m` into the field.
     ReentryNotConfirmed,
-    /// The rows seen when entering are not the planned lane: a lane would be skipped or repeated.
+    /// The rows seen when entering are not the planned lane: a lane would be skipped or repeated; or,
+    /// while following, the rows turned off the lane's direction faster than crop rows bend
+    /// (`entry_heading_watch_m`, `max_row_turn_rad`).
     WrongLane,
     /// The odometry pose was not finite.
     InvalidOdometry,
@@ -339,12 +341,21 @@ pub struct LaneSwitcher {
     bias_suspected_in_lane: bool,
     /// Stands for a suspected bias left in this lane (`row_bias_stands`).
     bias_stands_left: u32,
+    /// Consecutive row-direction measurements (one per [`ROW_HEADING_STEP_M`]) whose turn over
+    /// [`ROW_TURN_WINDOW_M`] exceeded `max_row_turn_rad`, signed by the turn's direction.
+    rows_turning: i32,
     dwell: Dwell,
 }
 
 /// Distance over which the followed rows' turn in `odom` is measured for the bias suspicion, m: a
 /// fit's heading wobbles by about 0.01 rad, so over 2 m the rate is good to 0.005-0.007 rad/m.
 const BIAS_SUSPECT_WINDOW_M: f64 = 2.0;
+/// Distance over which the followed rows' turn in `odom` is held to `max_row_turn_rad`, m: a fit that
+/// took up weeds turned 0.14-0.15 rad within it (soak seeds 324 and 680), while a fit's heading wobbles
+/// by about 0.01 rad.
+const ROW_TURN_WINDOW_M: f64 = 1.0;
+/// Consecutive measurements past `max_row_turn_rad`, the same way round, that stop the robot.
+const ROW_TURN_SAMPLES: i32 = 2;
 /// Shortest stretch of rows, m, over which their turn in `odom` before a stop counts for the rest
 /// at the stop (`resume_rest_s`): half the suspicion's window.
 const SHORT_SUSPECT_WINDOW_M: f64 = 1.0;
@@ -397,6 +408,7 @@ impl LaneSwitcher {
             bias_suspect_since_m: None,
             bias_suspected_in_lane: false,
             bias_stands_left: 0,
+            rows_turning: 0,
             dwell: Dwell::Off,
             cfg,
         })
@@ -902,6 +914,21 @@ impl LaneSwitcher {
         self.row_headings.rotate_right(1);
         self.row_headings[0] = (self.odometer_m, heading);
         self.row_headings_len = (self.row_headings_len + 1).min(ROW_HEADINGS);
+        let headings = &self.row_headings[..self.row_headings_len];
+        if let Some((_, yaw)) = headings.iter().find(|(at_m, _)| self.odometer_m - at_m >= ROW_TURN_WINDOW_M)
+        {
+            let (limit, turn) = (self.cfg.max_row_turn_rad, wrap_angle(heading - yaw));
+            let past = limit > 0.0 && turn.abs() > limit;
+            // Consecutive measurements past the limit the same way round: a fit that jumps one way
+            // and back (re-found after a LiDAR dropout near a row end: 0.10 then -0.19 rad) is
+            // not a turn.
+            let way = if turn > 0.0 { 1 } else { -1 };
+            self.rows_turning = match (past, self.rows_turning.signum() == way) {
+                (false, _) => 0,
+                (true, true) => self.rows_turning + way,
+                (true, false) => way,
+            };
+        }
         let window = self.row_headings[..self.row_headings_len]
             .iter()
             .find(|(at_m, _)| self.odometer_m - at_m >= BIAS_SUSPECT_WINDOW_M);
@@ -961,6 +988,7 @@ impl LaneSwitcher {
         self.bias_suspect_since_m = None;
         self.bias_suspected_in_lane = false;
         self.bias_stands_left = self.cfg.row_bias_stands;
+        self.rows_turning = 0;
         self.dwell = Dwell::Off;
         self.s_hint_m = self.reference.path().map_or(0.0, |p| p.project(odom, 0.0).s_m);
     }
@@ -993,7 +1021,12 @@ impl LaneSwitcher {
             self.s_hint_m = path.project(odom, self.s_hint_m).s_m;
         }
         self.watch_row_heading(travelled, saw_rows);
-        if !self.entry_heading_held(saw_rows) {
+        // Within `end_approach_m` of a row end the detector has seen, the rows in view are short and a
+        // fit found again there (after a LiDAR dropout) turns by 0.2 rad: the line is carried to the
+        // end instead (see below), and the watch over the lane's turn waits.
+        let end_near = self.row_end.is_some_and(|end| -along(&end, odom) <= self.cfg.end_approach_m);
+        let turned = !end_near && self.rows_turning.abs() >= ROW_TURN_SAMPLES;
+        if !self.entry_heading_held(saw_rows) || turned {
             self.mode = Mode::Stopped { reason: StopReason::WrongLane };
             return;
         }
@@ -1767,6 +1800,16 @@ mod tests {
             "lane_switch.max_slide_per_m",
             |c, v| c.max_slide_per_m = v,
             &[-0.1, 1.5, f64::NAN, f64::INFINITY],
+            0.0,
+        );
+    }
+
+    #[test]
+    fn a_row_turn_limit_out_of_range_is_refused() {
+        assert_range_checked(
+            "lane_switch.max_row_turn_rad",
+            |c, v| c.max_row_turn_rad = v,
+            &[-0.1, 4.0, f64::NAN, f64::INFINITY],
             0.0,
         );
     }
