@@ -95,7 +95,7 @@ fn a_fit_that_turns_onto_tall_weeds_in_a_gap_across_every_row_stops_the_robot() 
     // the gap: in the 1000-run soak the fit took the weed strip for the lane's rows, turned 0.14 rad
     // within a metre and led the robot over 3 plants in its third lane. Rows that turn in `odom` by
     // more than `lane_switch.max_row_turn_rad` (0.1 rad) within a metre stop the robot (`wrong_lane`):
-    // here in the first lane, its true heading already 0.1 rad off the rows, before the gap.
+    // here in the first lane, its true heading already 0.13 rad off the rows, before the gap.
     let summary = "grown soybean 11.3 m x 7 rows 0.78 m";
     let o = run_guarded(680, summary, |c| c.navigator.lane_switch.max_row_turn_rad = 0.0, |_| ());
     assert_eq!((o.crop_contacts, o.unsafe_commands), (0, 0), "{o:?}");
