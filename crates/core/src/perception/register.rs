@@ -376,9 +376,7 @@ impl Register {
         self.drift.correction[0] -= s * unapplied;
         self.drift.correction[1] += c * unapplied;
     }
-}
 
-impl Register {
     /// The drift of the lead-in to a window of `n` increments summing to `total` that is significant:
     /// the sum of the newest increments of the lead that makes the whole the most significant
     /// (`|sum| / √count` largest, the likeliest onset of a steady drift in noise of one scatter),
