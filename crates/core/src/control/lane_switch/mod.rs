@@ -1055,8 +1055,8 @@ impl LaneSwitcher {
             return;
         }
         // Close to a row end the detector has seen, the last plants have left the scan: rows missing or
-        // lost there are expected, and the line is carried to the end. Anywhere else they stop the robot.
-        let end_near = self.row_end.is_some_and(|end| -along(&end, odom) <= self.cfg.end_approach_m);
+        // lost there are expected, and the line is carried to the end (`end_near`, above). Anywhere else
+        // they stop the robot.
         if !end_near && detection.is_some_and(|d| d.status == RowStatus::Lost) {
             self.mode = Mode::Stopped { reason: StopReason::RowsLost };
             return;
