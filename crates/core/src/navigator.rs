@@ -180,8 +180,17 @@ impl Navigator {
     /// Validates the configuration and builds every stage (all buffers are allocated here).
     pub fn new(cfg: NavigatorConfig) -> Result<Self, ConfigError> {
         cfg.validate()?;
+        // The planted spacing the turns use is the detector's prior on the lanes' spacing, unless the
+        // detector is given its own or could never track rows at it.
+        let mut detector = cfg.detector.clone();
+        let planted = cfg.lane_switch.row_spacing_m;
+        if detector.spacing_prior_m == 0.0
+            && (detector.spacing_min_m..=detector.spacing_max_m).contains(&planted)
+        {
+            detector.spacing_prior_m = planted;
+        }
         Ok(Self {
-            detector: RowDetector::new(cfg.detector.clone())?,
+            detector: RowDetector::new(detector)?,
             switcher: LaneSwitcher::new(cfg.lane_switch.clone(), cfg.reference.clone())?,
             mpc: Mpc::new(cfg.mpc.clone())?,
             drift: Drift::new(cfg.drift.clone())?,

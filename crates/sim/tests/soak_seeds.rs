@@ -3,7 +3,8 @@
 //! that changed); the failures were found before faults were drawn, so they run without them.
 
 use croprow_sim::FaultConfig;
-use croprow_sim::experiment::soak::{Outcome, run_case, soak_case};
+use croprow_sim::closed_loop;
+use croprow_sim::experiment::soak::{Case, Outcome, run_case, soak_case};
 
 /// Runs the soak case of `seed` (whose summary starts with `summary`) without faults, once with the
 /// lane switcher's guards off (when `provokes`, it must fail as it did) and once as configured (it
@@ -71,4 +72,30 @@ fn a_lane_entry_in_grown_soybean_takes_the_inter_row_not_the_row() {
     // the nearer one, the dip over a row; the robot followed it (117 plants). The ground, showing
     // through in the inter-row, now settles which gap is the lane's.
     planted_run(125, "grown soybean 10.4 m x 6 rows 0.80 m", 2);
+}
+
+#[test]
+fn a_closed_canopy_lane_is_held_at_the_known_row_spacing_with_the_opt_in_prior() {
+    // Fault-free grown soybean, 0.71 m rows, dense weeds: in its second lane the fit's spacing shrank
+    // to 0.62 m on a lattice centred on the robot, which followed it up to 16 cm off the lane centre
+    // (6.6 cm mean over both lanes; with `mpc.row_clearance_m` 0.09 it swung a tyre over 4 plants).
+    // The opt-in prior on the planted spacing (`detector.spacing_prior_weight`, which the navigator
+    // draws to `lane_switch.row_spacing_m`) holds the lattice at the rows: 3.2 cm mean, measured.
+    let case = soak_case(1972);
+    assert!(
+        case.scenario.summary.starts_with("grown soybean 14.3 m x 5 rows 0.71 m"),
+        "{}",
+        case.scenario.summary
+    );
+    let cross_track = |case: &Case| {
+        let run =
+            closed_loop::run(&case.scenario, case.navigator.clone(), case.run.clone(), |_| {}).expect("runs");
+        assert_eq!((run.metrics.crop_contacts, run.metrics.lanes_completed), (0, 2), "{:?}", run.metrics);
+        run.metrics.cross_track_mean_m
+    };
+    let mut prior = case.clone();
+    prior.navigator.detector.spacing_prior_weight = 20.0;
+    let (without, with) = (cross_track(&case), cross_track(&prior));
+    assert!(without > 0.05, "the case no longer provokes the squeezed lattice: {without}");
+    assert!(with < 0.04, "{with} m mean cross-track (without the prior {without})");
 }
