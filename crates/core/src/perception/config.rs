@@ -180,7 +180,9 @@ pub struct DetectorConfig {
     /// centre (6.6 cm mean); at 20 it followed at 3.2 cm mean, and Table I over 200 m at or under the
     /// default in every field (grown soybean 1.04 -> 1.01 cm). Default 0, opt-in: at 20 the 1000-run
     /// soaks ran over 62 plants in 8 runs (seeds 0-999) and 41 in 8 (1000-1999) against 9 in 7 and
-    /// 30 in 2, several of them at the start, with 15 and 14 more runs done (docs/faults.md, session 40).
+    /// 30 in 2, several of them at the start, where the prior dragged the start-up search's other
+    /// lattice; with the tolerance gate, 15 plants in 4 runs on seeds 0-999, 724 done against 732
+    /// (docs/faults.md, session 40).
     pub spacing_prior_weight: f64,
     /// Default mode: the known row spacing the prior draws to, m; 0 takes `planted_spacing_m` when
     /// set, else no prior. The navigator fills a 0 with `lane_switch.row_spacing_m`, the planted
