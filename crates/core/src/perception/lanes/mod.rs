@@ -855,8 +855,8 @@ impl Lanes {
             if known > 0.0 && config.spacing_prior_weight > 0.0 && near_known {
                 // The planted spacing, known, holds a closed canopy's lattice from shrinking onto its
                 // crests (soak seed 1972: 0.62 m read for 0.71 m rows, the lane 15 cm off). A lattice
-                // further off is another one (the start-up search's, at twice or half the spacing), which
-                // the prior would only drag across the rows (soak seeds 577, 1901: plants at the start).
+                // further off is not at the planted spacing, and the prior would only drag it across
+                // the rows: without this gate soak seeds 577 and 1901 ran over plants at the start.
                 let w = config.spacing_prior_weight;
                 n[(1, 1)] += w;
                 r[1] += w * known / predicted.crests;
