@@ -774,6 +774,7 @@ impl Lanes {
         let mut support = [0.0; 2];
         let mut far = [0.0f64; 2];
         let crests = predicted.crests as i32;
+        let spacing_prior = spacing_prior(predicted, config);
         for pass in 0..2 {
             // Sums of the symmetric normal matrix of φ = [1, q, x, x², d] (q = j + ½, d the age) and
             // of φ·y.
@@ -848,16 +849,7 @@ impl Lanes {
                 n[(i, i)] += w;
                 r[i] += w * v;
             }
-            let known =
-                if config.spacing_prior_m > 0.0 { config.spacing_prior_m } else { config.planted_spacing_m };
-            let near_known =
-                (predicted.spacing_m() - known).abs() <= config.planted_spacing_tolerance * known;
-            if known > 0.0 && config.spacing_prior_weight > 0.0 && near_known {
-                // The planted spacing, known, holds a closed canopy's lattice from shrinking onto its
-                // crests (soak seed 1972: 0.62 m read for 0.71 m rows, the lane 15 cm off). A lattice
-                // further off is not at the planted spacing, and the prior would only drag it across
-                // the rows: without this gate soak seeds 577 and 1901 ran over plants at the start.
-                let w = config.spacing_prior_weight;
+            if let Some((w, known)) = spacing_prior {
                 n[(1, 1)] += w;
                 r[1] += w * known / predicted.crests;
             }
@@ -964,6 +956,19 @@ fn hist_index(u: f64) -> Option<usize> {
 
 fn hist_centre(i: usize) -> f64 {
     -HIST_HALF_M + (i as f64 + 0.5) * HIST_BIN_M
+}
+
+/// The prior on the lane's row spacing, `(weight, known spacing in m)`, or none.
+///
+/// The planted spacing, known, holds a closed canopy's lattice from shrinking onto its crests (soak
+/// seed 1972: 0.62 m read for 0.71 m rows, the lane 15 cm off). A lattice further than
+/// `planted_spacing_tolerance` off is not at the planted spacing, and the prior would only drag it
+/// across the rows: without this gate soak seeds 577 and 1901 ran over plants at the start.
+fn spacing_prior(predicted: &Lane, config: &DetectorConfig) -> Option<(f64, f64)> {
+    let known = if config.spacing_prior_m > 0.0 { config.spacing_prior_m } else { config.planted_spacing_m };
+    let near_known = (predicted.spacing_m() - known).abs() <= config.planted_spacing_tolerance * known;
+    (known > 0.0 && config.spacing_prior_weight > 0.0 && near_known)
+        .then_some((config.spacing_prior_weight, known))
 }
 
 #[cfg(test)]
