@@ -215,6 +215,24 @@ fn a_gyro_bias_step_that_slides_odom_past_the_limit_stops_the_robot_before_the_c
 }
 
 #[test]
+fn a_slide_from_the_first_metre_of_a_run_is_stopped_by_the_opt_in_slide_watch() {
+    // Grown soybean 0.74 m apart, 29 % slip and 8 cm/s sideways over x = 2.1-5.5 m, an 88° sector of
+    // the scan missing over x = 3.4-4.6 m, the robot set down at x = 1.2 m. Registration waited its
+    // metre, and its noise estimate started from a first pair of increments 24 mm apart (17 mm): the
+    // increments then leaned 13 mm a keyframe with a scatter of about 8 mm, and the window's sum never
+    // passed the test. The lane read the robot centred while it slid 39 cm, over 29 plants. The opt-in
+    // slide watch (`detector.register_rest_watch`) registers the lane from its first keyframe with the
+    // noise start of `register_from_rest` and only reports the slide: the robot stops, `sliding`, clean.
+    let mut unwatched = case(1245, "grown soybean 11.2 m x 8 rows 0.74 m");
+    unwatched.navigator.detector.register_rest_watch = false;
+    let mut watched = unwatched.clone();
+    watched.navigator.detector.register_rest_watch = true;
+    let outcome = provoke_then_guard(&unwatched, &watched);
+    assert_eq!(outcome.end.as_str(), "stopped: sliding", "{outcome:?}");
+    assert!(outcome.distance_m < 2.5, "{outcome:?}");
+}
+
+#[test]
 fn a_slide_from_the_first_metre_of_a_run_is_registered_from_the_start() {
     // Grown soybean 0.70 m apart, 29 % slip and 7 cm/s sideways over x = 1.9-7.3 m, the robot set down
     // at x = 1.8 m: it slides from its first decimetre. Registration waited for 1 m of lane, the

@@ -296,6 +296,14 @@ pub struct DetectorConfig {
     /// a slide under the slide stop's limit in young soybean is missed for longer (soak seed 152).
     /// docs/faults.md, sessions 37 and 38.
     pub register_from_rest: bool,
+    /// The slide watch: a lane found while the robot stood still is registered a second time from its
+    /// first keyframe, with `register_from_rest`'s noise start, and the slide that registration finds
+    /// is reported (`RowDetector::slide_per_m`: the slide stop and the MPC's course over the ground)
+    /// while its correction is never applied; the lane keeps the registration that waits its metre.
+    /// `register_from_rest` cleaned slides from a run's first metre but moved the lane under the robot
+    /// on false drifts (Table I's 200 m grown soybean 1.27 cm instead of 1.04). Default false
+    /// (measured in session 41: docs/faults.md).
+    pub register_rest_watch: bool,
     /// Compare only the bands of the registered stretch that lie before the row end the lane
     /// pipeline found, with a band (0.25 m) to spare. Where the canopy ends inside a band its
     /// profiles lean to one side with the true odometry, the plants there seen from a changing
@@ -409,6 +417,7 @@ impl Default for DetectorConfig {
             deskew_period_s: 0.1,
             register_enabled: true,
             register_from_rest: false,
+            register_rest_watch: false,
             register_before_row_end: true,
             register_from_onset: false,
             register_window: 6,

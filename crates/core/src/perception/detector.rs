@@ -67,6 +67,14 @@ pub struct RowDetector {
     /// The lane hypothesis last seen ([`Lanes::generation`]) and whether it was found while the robot
     /// stood still (registered from its first keyframe, see `register_from_rest`).
     lane_found: (u32, bool),
+    /// The slide watch (`register_rest_watch`): a second registration of a lane found at rest, from
+    /// its first keyframe, whose slide feeds [`RowDetector::slide_per_m`] and whose correction is
+    /// never applied.
+    watch: Register,
+    /// The configuration the watch registers with: `register_from_rest` set.
+    watch_config: DetectorConfig,
+    /// Whether the lane hypothesis last seen was found while the robot stood still.
+    found_at_rest: bool,
     centroids: Vec<[f64; 2]>,
     last: Option<(f64, Pose2)>,
     /// A pose that jumped away from `last`: accepted as the new odometry origin if the next scan agrees.
@@ -88,6 +96,9 @@ impl RowDetector {
             lanes: Lanes::new(&config),
             register: Register::new(),
             lane_found: (0, false),
+            watch: Register::new(),
+            watch_config: DetectorConfig { register_from_rest: true, ..config.clone() },
+            found_at_rest: false,
             centroids: Vec::with_capacity(config.map_capacity),
             last: None,
             pending_jump: None,
@@ -242,6 +253,14 @@ impl RowDetector {
             // undoes the skew of the returns it registers.
             let skew = Deskew::of_twist(twist.filter(|_| !self.config.deskew), &self.config);
             let row_end = self.lanes.row_end().filter(|_| self.config.register_before_row_end);
+            if self.config.register_rest_watch {
+                // The watch registers a lane found at rest from its first keyframe, as
+                // `register_from_rest` does, but only measures: the lanes keep running in the frame of
+                // the registration that waits the metre.
+                let watched = self.lanes.row_direction().filter(|_| self.found_at_rest);
+                let skew = skew.map(|d| (d, mount));
+                self.watch.step(&self.pre.cropped, odom, watched, row_end, skew, &self.watch_config);
+            }
             self.register.step(
                 &self.pre.cropped,
                 odom,
@@ -266,6 +285,7 @@ impl RowDetector {
         let generation = self.lanes.generation();
         if generation != self.lane_found.0 {
             self.lane_found = (generation, at_rest && self.config.register_from_rest);
+            self.found_at_rest = at_rest;
         }
         let at_end = out.row_end_ahead_m.is_some_and(|d| d <= self.config.end_trigger_m);
         let Some(lane) = out.lane else {
@@ -299,6 +319,7 @@ impl RowDetector {
         self.map.clear();
         self.lanes.reset();
         self.register.reset();
+        self.watch.reset();
         self.centroids.clear();
         self.sparse_scans = 0;
     }
@@ -331,13 +352,19 @@ impl RowDetector {
 
     /// The sideways slide found at the last scan, m per metre driven, positive when the robot slides to
     /// its left (`base_link` y) unseen by the odometry: canopy registration's while its drift is
-    /// significant, else the slide test's (opt-in, `shear_window_m`); `None` when neither found one
-    /// (or in the paper mode). See `perception::register` and `perception::lanes`, the slide test.
+    /// significant (with `register_rest_watch`, the larger of it and the slide watch's), else the
+    /// slide test's (opt-in, `shear_window_m`); `None` when none found one (or in the paper mode).
+    /// See `perception::register` and `perception::lanes`, the slide test.
     pub fn slide_per_m(&self) -> Option<f64> {
-        if self.config.register_enabled
-            && let Some(k) = self.register.drift().slide_per_m
-        {
-            return Some(k);
+        if self.config.register_enabled {
+            let watched = self.watch.drift().slide_per_m.filter(|_| self.config.register_rest_watch);
+            let measured = match (self.register.drift().slide_per_m, watched) {
+                (Some(k), Some(w)) => Some(if w.abs() > k.abs() { w } else { k }),
+                (k, w) => k.or(w),
+            };
+            if measured.is_some() {
+                return measured;
+            }
         }
         self.lanes.slide_per_m()
     }
