@@ -301,8 +301,10 @@ pub struct DetectorConfig {
     /// is reported (`RowDetector::slide_per_m`: the slide stop and the MPC's course over the ground)
     /// while its correction is never applied; the lane keeps the registration that waits its metre.
     /// `register_from_rest` cleaned slides from a run's first metre but moved the lane under the robot
-    /// on false drifts (Table I's 200 m grown soybean 1.27 cm instead of 1.04). Default false
-    /// (measured in session 41: docs/faults.md).
+    /// on false drifts (Table I's 200 m grown soybean 1.27 cm instead of 1.04). Default false until
+    /// the tests it changes are re-derived: the 1000-run soaks ran over 6 plants in 3 runs (seeds
+    /// 0-999) and 2 in 2 (1000-1999) with it, against 9 in 7 and 30 in 2, with 6 fewer runs done
+    /// over both, and the 200 m grown soybean followed at 1.17 cm (docs/faults.md, session 41).
     pub register_rest_watch: bool,
     /// Compare only the bands of the registered stretch that lie before the row end the lane
     /// pipeline found, with a band (0.25 m) to spare. Where the canopy ends inside a band its
