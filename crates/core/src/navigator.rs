@@ -372,12 +372,16 @@ impl Navigator {
         if guidance.reset_detector {
             self.detector.reset();
         }
-        // A drift of `odom` that the detector measures past the limit: the map lags it (see
-        // `LaneSwitchConfig::max_slide_per_m`), so the robot stops rather than follow the lag.
+        // A drift of `odom` that the detector measures past the limit, or one the lanes lag too far:
+        // the map lags it (see `LaneSwitchConfig::max_slide_per_m` and `max_slide_lag_m`), so the
+        // robot stops rather than follow the lag.
         let max_slide = self.cfg.lane_switch.max_slide_per_m;
+        let max_lag = self.cfg.lane_switch.max_slide_lag_m;
+        let lagging = |(k, lag): (f64, f64)| max_lag > 0.0 && k.abs() >= 0.5 * max_slide && lag >= max_lag;
         if guidance.mode == Mode::Following
             && max_slide > 0.0
-            && self.detector.slide_per_m().is_some_and(|k| k.abs() >= max_slide)
+            && (self.detector.slide_per_m().is_some_and(|k| k.abs() >= max_slide)
+                || self.detector.watched_slide_lag().is_some_and(lagging))
         {
             self.switcher.stop(StopReason::Sliding);
             guidance.mode = self.switcher.mode();

@@ -258,13 +258,20 @@ fn a_slide_too_strong_to_crab_against_in_a_narrow_lane_stops_the_robot() {
     // Without the slide stop (`lane_switch.max_slide_per_m`, on by default since session 30): it stops
     // the robot first, 1.5 m in, clean
     // (`soak_follow_faults.rs` guards it).
-    let mut case = with_slide_test(350);
-    assert!(case.scenario.summary.starts_with("grown soybean 13.7 m x 10 rows 0.70 m apart"));
-    case.run.lanes = 1;
-    case.navigator.lane_switch.max_slide_per_m = 0.0;
+    // And without the slide watch (`detector.register_rest_watch`, the default since session 42):
+    // it reads the slide from the first keyframe, the MPC crabs against it from the first metre,
+    // before the robot is off the line, and drives the lane clean.
+    let mut watched = with_slide_test(350);
+    assert!(watched.scenario.summary.starts_with("grown soybean 13.7 m x 10 rows 0.70 m apart"));
+    watched.run.lanes = 1;
+    watched.navigator.lane_switch.max_slide_per_m = 0.0;
+    let mut case = watched.clone();
+    case.navigator.detector.register_rest_watch = false;
     let o = run_case(&case).expect("runs");
     assert_eq!((o.crop_contacts, o.unsafe_commands), (0, 0), "{o:?}");
     assert_eq!(o.end, "stopped: no_safe_motion", "{o:?}");
+    let o = run_case(&watched).expect("runs");
+    assert_eq!((o.crop_contacts, o.unsafe_commands, o.end.as_str()), (0, 0, "done"), "{o:?}");
 }
 
 #[test]
@@ -276,11 +283,14 @@ fn a_lane_entered_on_a_fit_that_turns_off_the_planned_direction_is_searched_agai
     // entry asks the detector to search again and the robot drives all three lanes clean.
     // The provoking run and the held one compare every band of the canopy registration, as before
     // session 38: leaving out the bands past the row end (the default since) the robot reaches that
-    // entry on another path and drives the field clean without the watch too.
+    // entry on another path and drives the field clean without the watch too. The slide watch
+    // (`detector.register_rest_watch`, the default since session 42) sends it on another path as
+    // well, so both runs go without it.
     let defaults = soak_case(765);
     assert!(defaults.scenario.summary.starts_with("grown corn 11.5 m x 8 rows 0.71 m apart"));
     let mut held = defaults.clone();
     held.navigator.detector.register_before_row_end = false;
+    held.navigator.detector.register_rest_watch = false;
     let mut unheld = held.clone();
     unheld.navigator.lane_switch.entry_heading_watch_m = 0.0;
     let before = run_case(&unheld).expect("runs");

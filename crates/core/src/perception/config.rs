@@ -301,10 +301,11 @@ pub struct DetectorConfig {
     /// is reported (`RowDetector::slide_per_m`: the slide stop and the MPC's course over the ground)
     /// while its correction is never applied; the lane keeps the registration that waits its metre.
     /// `register_from_rest` cleaned slides from a run's first metre but moved the lane under the robot
-    /// on false drifts (Table I's 200 m grown soybean 1.27 cm instead of 1.04). Default false until
-    /// the tests it changes are re-derived: the 1000-run soaks ran over 6 plants in 3 runs (seeds
-    /// 0-999) and 2 in 2 (1000-1999) with it, against 9 in 7 and 30 in 2, with 6 fewer runs done
-    /// over both, and the 200 m grown soybean followed at 1.17 cm (docs/faults.md, session 41).
+    /// on false drifts (Table I's 200 m grown soybean 1.27 cm instead of 1.04). Default true (since
+    /// session 42): the 1000-run soaks ran over 6 plants in 3 runs (seeds 0-999) and 2 in 2
+    /// (1000-1999) with it, against 9 in 7 and 30 in 2 without, with 6 fewer runs done over both,
+    /// and the 200 m grown soybean followed at 1.17 cm (docs/faults.md, session 41). With it on,
+    /// `lane_switch.max_slide_lag_m` stops the robot when the lanes lag the slide it finds.
     pub register_rest_watch: bool,
     /// Compare only the bands of the registered stretch that lie before the row end the lane
     /// pipeline found, with a band (0.25 m) to spare. Where the canopy ends inside a band its
@@ -419,7 +420,7 @@ impl Default for DetectorConfig {
             deskew_period_s: 0.1,
             register_enabled: true,
             register_from_rest: false,
-            register_rest_watch: false,
+            register_rest_watch: true,
             register_before_row_end: true,
             register_from_onset: false,
             register_window: 6,

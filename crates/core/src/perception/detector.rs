@@ -64,16 +64,16 @@ pub struct RowDetector {
     lanes: Lanes,
     /// Canopy registration (`register_enabled`): the lanes run in its `nav` frame.
     register: Register,
-    /// The lane hypothesis last seen ([`Lanes::generation`]) and whether it was found while the robot
-    /// stood still (registered from its first keyframe, see `register_from_rest`).
-    lane_found: (u32, bool),
+    /// The lane hypothesis last seen ([`Lanes::generation`]).
+    lane_generation: u32,
     /// The slide watch (`register_rest_watch`): a second registration of a lane found at rest, from
     /// its first keyframe, whose slide feeds [`RowDetector::slide_per_m`] and whose correction is
     /// never applied.
     watch: Register,
     /// The configuration the watch registers with: `register_from_rest` set.
     watch_config: DetectorConfig,
-    /// Whether the lane hypothesis last seen was found while the robot stood still.
+    /// Whether the lane hypothesis last seen was found while the robot stood still: the watch
+    /// registers it, and with `register_from_rest` registration does too, from its first keyframe.
     found_at_rest: bool,
     centroids: Vec<[f64; 2]>,
     last: Option<(f64, Pose2)>,
@@ -95,7 +95,7 @@ impl RowDetector {
             paper: Paper::new(&config),
             lanes: Lanes::new(&config),
             register: Register::new(),
-            lane_found: (0, false),
+            lane_generation: 0,
             watch: Register::new(),
             watch_config: DetectorConfig { register_from_rest: true, ..config.clone() },
             found_at_rest: false,
@@ -247,7 +247,8 @@ impl RowDetector {
             // robot settles onto it. With `register_from_rest`, one found from a standstill (the start
             // of a run) is registered at once: a slide from the first metre would otherwise run
             // unmeasured.
-            let wait_m = if self.lane_found.1 { 0.0 } else { REGISTER_MIN_LANE_M };
+            let from_rest = self.found_at_rest && self.config.register_from_rest;
+            let wait_m = if from_rest { 0.0 } else { REGISTER_MIN_LANE_M };
             let direction = self.lanes.row_direction().filter(|_| self.lanes.tracked_for_m() >= wait_m);
             // The returns are already deskewed when the detector deskews; otherwise registration
             // undoes the skew of the returns it registers.
@@ -283,8 +284,8 @@ impl RowDetector {
             &mut self.centroids,
         );
         let generation = self.lanes.generation();
-        if generation != self.lane_found.0 {
-            self.lane_found = (generation, at_rest && self.config.register_from_rest);
+        if generation != self.lane_generation {
+            self.lane_generation = generation;
             self.found_at_rest = at_rest;
         }
         let at_end = out.row_end_ahead_m.is_some_and(|d| d <= self.config.end_trigger_m);
@@ -367,5 +368,21 @@ impl RowDetector {
             }
         }
         self.lanes.slide_per_m()
+    }
+
+    /// The slide the slide watch finds (`register_rest_watch`), m per metre driven as
+    /// [`RowDetector::slide_per_m`], with how far the lanes lag it, m: the watch's correction ahead
+    /// of the one the lanes run on, across the rows, positive when the lanes trail the slide.
+    /// `None` while the watch holds no significant slide (or is off, or no lane is tracked).
+    pub fn watched_slide_lag(&self) -> Option<(f64, f64)> {
+        if !(self.config.register_enabled && self.config.register_rest_watch) {
+            return None;
+        }
+        let slide = self.watch.drift().slide_per_m.filter(|k| k.is_finite())?;
+        let (s, c) = self.lanes.row_direction()?.sin_cos();
+        let [wx, wy] = self.watch.drift().correction;
+        let [rx, ry] = self.register.drift().correction;
+        let lead_left = -s * (wx - rx) + c * (wy - ry);
+        Some((slide, lead_left * slide.signum()))
     }
 }

@@ -239,6 +239,16 @@ pub struct LaneSwitchConfig {
     /// (docs/faults.md, session 30); a 2 cm/s slide (`fault-slip-patch`, read at 0.05-0.06) is driven
     /// through. 0 turns the stop off.
     pub max_slide_per_m: f64,
+    /// Farthest the lane may lag a slide the slide watch measures (`detector.register_rest_watch`),
+    /// m: the watch's correction ahead of the one the lanes run on, along the slide. With the watch
+    /// finding a slide of at least half `max_slide_per_m` and the lanes lagging it this far or
+    /// more, the robot stops (`sliding`), as at `max_slide_per_m`. The registration the lanes run on
+    /// waits a metre of lane and then its own significance, so a slide from the first metres under
+    /// the limit reaches the crop before the lanes follow it: soak seed 78 slid 0.06-0.09 m/m, the
+    /// lanes lagged the watch by 15 cm and a tyre took 2 plants. Default 0.08: over the six 200 m
+    /// Table I runs, fault-free, the lag passed it only with the watch's slide under 0.03 m/m
+    /// (docs/faults.md, session 42). 0 turns the stop off.
+    pub max_slide_lag_m: f64,
     /// Tightest turn while following rows, 1/m: the navigator holds the command's yaw rate within
     /// this times the forward speed the MPC plans (its first step's, before the acceleration limit),
     /// plus 0.02 rad/s. Rows bend gently (the paper's curved field at most 0.024 1/m), yet a robot just
@@ -325,6 +335,7 @@ impl Default for LaneSwitchConfig {
             following_spacing_tolerance: 0.15,
             max_start_heading_rad: 0.2,
             max_slide_per_m: 0.1,
+            max_slide_lag_m: 0.08,
             max_following_curvature_per_m: 0.0,
             entry_heading_watch_m: 2.0,
             max_row_turn_rad: 0.1,
@@ -373,6 +384,7 @@ impl LaneSwitchConfig {
         check_range("lane_switch.resume_rest_rad_per_m", self.resume_rest_rad_per_m, 1e-4, 1.0)?;
         check_range("lane_switch.max_start_heading_rad", self.max_start_heading_rad, 0.01, 1.0)?;
         check_range("lane_switch.max_slide_per_m", self.max_slide_per_m, 0.0, 1.0)?;
+        check_range("lane_switch.max_slide_lag_m", self.max_slide_lag_m, 0.0, 10.0)?;
         check_range(
             "lane_switch.max_following_curvature_per_m",
             self.max_following_curvature_per_m,

@@ -1805,6 +1805,16 @@ mod tests {
     }
 
     #[test]
+    fn a_slide_lag_limit_out_of_range_is_refused() {
+        assert_range_checked(
+            "lane_switch.max_slide_lag_m",
+            |c, v| c.max_slide_lag_m = v,
+            &[-0.01, 11.0, f64::NAN, f64::NEG_INFINITY],
+            0.08,
+        );
+    }
+
+    #[test]
     fn a_row_turn_limit_out_of_range_is_refused() {
         assert_range_checked(
             "lane_switch.max_row_turn_rad",
