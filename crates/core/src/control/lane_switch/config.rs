@@ -245,8 +245,9 @@ pub struct LaneSwitchConfig {
     /// more, the robot stops (`sliding`), as at `max_slide_per_m`. The registration the lanes run on
     /// waits a metre of lane and then its own significance, so a slide from the first metres under
     /// the limit reaches the crop before the lanes follow it: soak seed 78 slid 0.06-0.09 m/m, the
-    /// lanes lagged the watch by 15 cm and a tyre took 2 plants. Default 0.08: over the six 200 m
-    /// Table I runs, fault-free, the lag passed it only with the watch's slide under 0.03 m/m
+    /// lanes lagged the watch by 15 cm and a tyre took 2 plants. Default 0.08: over Table I's 200 m
+    /// runs, fault-free, the lag passed it only with the watch's slide under 0.03 m/m (it is a random
+    /// walk over a long lane), and the stop costs 27 runs done of the 2000-run soak for 3 plants
     /// (docs/faults.md, session 42). 0 turns the stop off.
     pub max_slide_lag_m: f64,
     /// Tightest turn while following rows, 1/m: the navigator holds the command's yaw rate within
