@@ -1,10 +1,13 @@
 //! `croprow bench [--json]`: the command line's own quick benchmark (a few seconds, one thread, no
 //! criterion). Every figure says what it measured, on what, and over how many runs:
 //!
-//! - `detect_us_median` / `detect_paper_us_median`: one `RowDetector::detect` call, default / paper mode,
+//! - `detect_us_median` / `detect_paper_us_median` (and `_mean`: registration's keyframes, every 0.15 m
+//!   driven, make the times two-humped): one `RowDetector::detect` call, default / paper mode,
 //!   on full-resolution simulated VLP-16 scans (16 beams × 1800 azimuths, motion skew) over the grown-corn
-//!   scenario, driven by the human-like driver with EKF odometry; each mode runs over the whole sequence
-//!   of scans in order (a warm map, as on the robot) and the first scans (start-up search) are not timed;
+//!   scenario, driven by the human-like driver from rest with EKF odometry, each scan with its odometry
+//!   twist (so the slide watch and the registration's skew are timed too); each mode runs over the whole
+//!   sequence of scans in order (a warm map, as on the robot) and the first scans (at rest, start-up
+//!   search) are not timed;
 //! - `sim_realtime_factor`: simulated seconds per wall second of the full closed loop on one thread, the
 //!   median of `runs.sim_loops` loops of 8 s simulated each (min and max beside it): field
 //!   ray casting of every LiDAR revolution, robot dynamics, wheel odometry and IMU at their rates, crop
@@ -34,6 +37,9 @@ const FIELD_LENGTH_M: f64 = 25.0;
 /// Scans recorded for the detector timings, and the first ones of each sequence left untimed.
 const DETECT_SCANS: usize = 80;
 const DETECT_WARMUP_SCANS: usize = 10;
+/// Scans recorded at rest before the driver sets off (inside the warm-up): the lane is found at rest,
+/// as at the start of a run, so the slide watch registers it and is timed.
+const DETECT_REST_SCANS: usize = 3;
 /// Simulated time of one closed loop, s.
 const LOOP_SIM_S: f64 = 8.0;
 /// Closed loops timed: one loop is ~0.2 s of wall time, so a single one swings ±15 % with the load.
@@ -73,7 +79,9 @@ struct Machine {
 #[derive(Debug, Serialize)]
 struct Report {
     detect_us_median: f64,
+    detect_us_mean: f64,
     detect_paper_us_median: f64,
+    detect_paper_us_mean: f64,
     detect_points_per_scan: f64,
     sim_realtime_factor: f64,
     sim_realtime_factor_min: f64,
@@ -103,7 +111,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
     let report = Report {
         detect_us_median: median(&default),
+        detect_us_mean: mean(&default),
         detect_paper_us_median: median(&paper),
+        detect_paper_us_mean: mean(&paper),
         detect_points_per_scan: points_per_scan,
         sim_realtime_factor: median(&factors),
         sim_realtime_factor_min: factors.iter().copied().fold(f64::INFINITY, f64::min),
@@ -133,14 +143,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// A scan and the odometry pose at its stamp.
+/// A scan with the odometry pose and twist at its stamp.
 struct Recorded {
     stamp_s: f64,
     odom: Pose2,
+    odom_twist: Twist2,
     points: Vec<Point3>,
 }
 
-/// Drives the human-like driver over the field and keeps every scan with its EKF pose.
+/// Drives the human-like driver over the field, from rest, and keeps every scan with its EKF pose and
+/// twist.
 fn record_scans(scenario: &Scenario) -> anyhow::Result<(Vec<Recorded>, f64)> {
     let mut world = World::new(scenario).context("building the world")?;
     let mut driver = world.driver().context("driver")?;
@@ -148,18 +160,25 @@ fn record_scans(scenario: &Scenario) -> anyhow::Result<(Vec<Recorded>, f64)> {
     ekf.reset(0.0, world.robot().pose()).context("EKF start")?;
     let mut scans = Vec::with_capacity(DETECT_SCANS);
     while scans.len() < DETECT_SCANS {
-        let cmd = driver.command(world.time_s(), &world.robot().pose(), world.field());
+        let cmd = if scans.len() < DETECT_REST_SCANS {
+            Twist2::ZERO
+        } else {
+            driver.command(world.time_s(), &world.robot().pose(), world.field())
+        };
         let step = world.step(cmd).context("world step")?;
         fuse_odometry(&mut ekf, step.wheel, step.imu).context("EKF")?;
         if let Some(scan) = step.scan {
-            scans.push(Recorded { stamp_s: scan.stamp_s, odom: ekf.pose(), points: scan.points.to_vec() });
+            let (odom, odom_twist) = (ekf.pose(), ekf.twist());
+            scans.push(Recorded { stamp_s: scan.stamp_s, odom, odom_twist, points: scan.points.to_vec() });
         }
     }
     let points = scans.iter().map(|s| s.points.len()).sum::<usize>() as f64 / scans.len().max(1) as f64;
     Ok((scans, points))
 }
 
-/// Wall time of each `detect` call over the scan sequence, µs, after the warm-up scans.
+/// Wall time of each `detect` call over the scan sequence, µs, after the warm-up scans. Each scan carries
+/// its odometry twist, as the navigator passes it: the detector undoes the motion skew of the returns it
+/// registers, and the slide watch registers a lane found at rest (`register_rest_watch`).
 fn time_detector(
     config: DetectorConfig,
     scans: &[Recorded],
@@ -170,7 +189,8 @@ fn time_detector(
     let mut times = Vec::with_capacity(scans.len());
     for (k, s) in scans.iter().enumerate() {
         let t0 = Instant::now();
-        let d = detector.detect(Scan { stamp_s: s.stamp_s, points: &s.points, twist: None }, s.odom, &mount);
+        let scan = Scan { stamp_s: s.stamp_s, points: &s.points, twist: Some(s.odom_twist) };
+        let d = detector.detect(scan, s.odom, &mount);
         let us = t0.elapsed().as_secs_f64() * 1e6;
         std::hint::black_box(d);
         if k >= DETECT_WARMUP_SCANS {
@@ -257,6 +277,12 @@ fn time_mpc() -> anyhow::Result<Vec<f64>> {
     Ok(times)
 }
 
+/// Mean of a sample's finite values (0 when there are none).
+fn mean(values: &[f64]) -> f64 {
+    let (sum, n) = values.iter().filter(|x| x.is_finite()).fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));
+    if n == 0 { 0.0 } else { sum / n as f64 }
+}
+
 /// Median of a sample (0 when empty).
 fn median(values: &[f64]) -> f64 {
     let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
@@ -300,12 +326,12 @@ fn print_table(r: &Report) {
         r.scenario
     );
     println!(
-        "detect, default mode   median {:>9.1} µs  over {} scans of {:.0} points",
-        r.detect_us_median, r.runs.detect, r.detect_points_per_scan
+        "detect, default mode   median {:>9.1} µs  (mean {:.1})  over {} scans of {:.0} points",
+        r.detect_us_median, r.detect_us_mean, r.runs.detect, r.detect_points_per_scan
     );
     println!(
-        "detect, paper mode     median {:>9.1} µs  over {} scans",
-        r.detect_paper_us_median, r.runs.detect_paper
+        "detect, paper mode     median {:>9.1} µs  (mean {:.1})  over {} scans",
+        r.detect_paper_us_median, r.detect_paper_us_mean, r.runs.detect_paper
     );
     println!(
         "closed loop            median {:>6.1} × real time (min {:.1}, max {:.1}) over {} loops: \
