@@ -39,8 +39,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut lidar = Lidar::new(&s.lidar, 1)?;
     let word = |w: &str| args.iter().skip(5).any(|a| a == w);
     let value = |key: &str| -> Result<f64, Box<dyn std::error::Error>> {
-        let found = args.iter().skip(5).find_map(|a| a.strip_prefix(key)?.strip_prefix('='));
-        Ok(found.map(str::parse).transpose()?.unwrap_or(0.0))
+        let Some(text) = args.iter().skip(5).find_map(|a| a.strip_prefix(key)?.strip_prefix('=')) else {
+            return Ok(0.0);
+        };
+        match text.parse::<f64>() {
+            Ok(v) if v.is_finite() => Ok(v),
+            _ => Err(format!("`{key}={text}`: expected a finite number").into()),
+        }
     };
     let (truly_slides, crab, overcount) = (word("truth"), value("crab")?, value("overcount")?);
     let cfg = DetectorConfig {
