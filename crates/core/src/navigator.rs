@@ -174,6 +174,9 @@ pub struct Navigator {
     last_stamp_s: Option<f64>,
     /// Time the MPC has planned no forward motion while following at a cruise speed, s.
     stalled_s: f64,
+    /// Where (`odom`) the detector last read a wheel slide while following: the MPC weighs the
+    /// heading by `mpc.sliding_heading_weight` until `mpc.sliding_hold_m` past it.
+    slide_read_at: Option<Pose2>,
 }
 
 impl Navigator {
@@ -197,6 +200,7 @@ impl Navigator {
             last_cmd: Twist2::ZERO,
             last_stamp_s: None,
             stalled_s: 0.0,
+            slide_read_at: None,
             cfg,
         })
     }
@@ -320,6 +324,22 @@ impl Navigator {
     /// the rows detected within 1-2 cm). Told the course, it steers until the robot's motion over the
     /// ground follows the line. Returns the course and the crab angle atan(slide per metre), by which
     /// the body points off it (the MPC places the tyres by the body).
+    /// True while following with a wheel slide read by the detector now or within
+    /// `mpc.sliding_hold_m` of driving: the MPC then weighs the heading by
+    /// `mpc.sliding_heading_weight` (opt-in: by default the same as the plain weight). Any other mode
+    /// forgets the slide.
+    fn sliding(&mut self, mode: Mode, odom: &Pose2) -> bool {
+        if mode != Mode::Following {
+            self.slide_read_at = None;
+            return false;
+        }
+        if self.detector.slide_per_m().is_some_and(f64::is_finite) {
+            self.slide_read_at = Some(*odom);
+        }
+        let hold = self.cfg.mpc.sliding_hold_m;
+        self.slide_read_at.is_some_and(|p| (odom.x - p.x).hypot(odom.y - p.y) <= hold)
+    }
+
     fn course(&self, mode: Mode, frenet: Frenet) -> (Frenet, f64) {
         match self.detector.slide_per_m().filter(|k| mode == Mode::Following && k.is_finite()) {
             Some(k) => {
@@ -399,6 +419,8 @@ impl Navigator {
             lane: guidance.lane,
             input_fault: None,
         };
+        let sliding = self.sliding(guidance.mode, &odom);
+        self.mpc.set_sliding(sliding);
         let path = if guidance.mode.is_stopped() || guidance.hold { None } else { self.switcher.path() };
         if let Some(path) = path {
             let frenet = path.project(&odom, self.switcher.progress_m());
