@@ -175,7 +175,7 @@ pub struct Navigator {
     /// Time the MPC has planned no forward motion while following at a cruise speed, s.
     stalled_s: f64,
     /// Where (`odom`) the detector last read a wheel slide while following: the MPC weighs the
-    /// heading by `mpc.sliding_heading_weight` until `mpc.sliding_hold_m` past it.
+    /// heading by `mpc.sliding_heading_factor` until `mpc.sliding_hold_m` past it.
     slide_read_at: Option<Pose2>,
 }
 
@@ -325,9 +325,8 @@ impl Navigator {
     /// ground follows the line. Returns the course and the crab angle atan(slide per metre), by which
     /// the body points off it (the MPC places the tyres by the body).
     /// True while following with a wheel slide read by the detector now or within
-    /// `mpc.sliding_hold_m` of driving: the MPC then weighs the heading by
-    /// `mpc.sliding_heading_weight` (opt-in: by default the same as the plain weight). Any other mode
-    /// forgets the slide.
+    /// `mpc.sliding_hold_m` of driving: the MPC then weighs the heading `mpc.sliding_heading_factor`
+    /// times as much (opt-in: 1 by default). Any other mode forgets the slide.
     fn sliding(&mut self, mode: Mode, odom: &Pose2) -> bool {
         if mode != Mode::Following {
             self.slide_read_at = None;

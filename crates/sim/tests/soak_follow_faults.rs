@@ -297,8 +297,8 @@ fn an_opt_in_heavier_heading_weight_under_a_slide_keeps_the_rear_tyre_off_the_ro
     // the robot by 20 cm when its correction came 3.9 m into the run. The MPC turned back 0.25 rad at
     // once and a rear tyre swung over the row (3 plants). Grown soybean 0.80 m apart (held-out seed
     // 1106: 21 % slip and 7 cm/s sideways through tall weeds) took a plant the same way. With the
-    // opt-in `mpc.sliding_heading_weight` of 40 (by default the plain 8), the heading weighs that
-    // much while a slide is read and for `mpc.sliding_hold_m` after: the robot turns back along a
+    // opt-in `mpc.sliding_heading_factor` of 5 (by default 1), the heading weighs 40 instead of 8
+    // while a slide is read and for `mpc.sliding_hold_m` after: the robot turns back along a
     // flatter arc, and the slide stop then stops it, `sliding`, clean. Opt-in because it also slows
     // the correction of a true offset under a false slide (docs/faults.md, session 44).
     let seeds =
@@ -306,7 +306,7 @@ fn an_opt_in_heavier_heading_weight_under_a_slide_keeps_the_rear_tyre_off_the_ro
     for (seed, summary) in seeds {
         let defaults = case(seed, summary);
         let mut flatter = defaults.clone();
-        flatter.navigator.mpc.sliding_heading_weight = 40.0;
+        flatter.navigator.mpc.sliding_heading_factor = 5.0;
         let outcome = provoke_then_guard(&defaults, &flatter);
         assert_eq!(outcome.end.as_str(), "stopped: sliding", "{outcome:?}");
     }

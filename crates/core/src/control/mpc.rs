@@ -74,19 +74,18 @@ pub struct MpcConfig {
     pub lateral_weight: f64,
     /// Weight on the heading error, 1/rad². Default 8.
     pub heading_weight: f64,
-    /// Weight on the heading error while the detector reads a wheel slide, and for `sliding_hold_m`
-    /// after, 1/rad² (see [`Mpc::set_sliding`]). Default 8, the plain `heading_weight`: off. Under a
-    /// slide the lane under the robot lags the crop (registration reads part of the slide and applies
-    /// it in steps), so the lane jumps sideways under the robot as the reading catches up; at the
-    /// plain weight the MPC then turned back 0.25 rad at once and swung a rear tyre over a row (soak
-    /// seeds 13 and 1106). At 40 the robot turns back along a flatter arc and both are clean, but it
-    /// also corrects a true offset more slowly wherever a false slide is read: the held-out soak
-    /// seeds 1000-1999 ran over 10 plants in 3 runs instead of 2 in 2 (a mount error read as a slide,
-    /// 1384: 6 plants), while seeds 0-999 went from 3 plants in 1 run to none (docs/faults.md,
-    /// session 44).
-    pub sliding_heading_weight: f64,
+    /// Factor on `heading_weight` while the detector reads a wheel slide, and for `sliding_hold_m`
+    /// after (see [`Mpc::set_sliding`]). Default 1: off. Under a slide the lane under the robot lags
+    /// the crop (registration reads part of the slide and applies it in steps), so the lane jumps
+    /// sideways under the robot as the reading catches up; at the plain weight the MPC then turned
+    /// back 0.25 rad at once and swung a rear tyre over a row (soak seeds 13 and 1106). At 5 (a weight
+    /// of 40) the robot turns back along a flatter arc and both are clean, but it also corrects a true
+    /// offset more slowly wherever a false slide is read: the held-out soak seeds 1000-1999 ran over
+    /// 10 plants in 3 runs instead of 2 in 2 (a mount error read as a slide, 1384: 6 plants), while
+    /// seeds 0-999 went from 3 plants in 1 run to none (docs/faults.md, session 44).
+    pub sliding_heading_factor: f64,
     /// Distance driven after the detector last read a slide over which the heading still weighs
-    /// `sliding_heading_weight`, m: the lane keeps catching up with the slide after the reading
+    /// `sliding_heading_factor`, m: the lane keeps catching up with the slide after the reading
     /// lapses. Default 1.0.
     pub sliding_hold_m: f64,
     /// Weight on the speed error v − v_ref, s²/m². Default 2.
@@ -155,7 +154,7 @@ impl Default for MpcConfig {
             step_s: 0.1,
             lateral_weight: 60.0,
             heading_weight: 8.0,
-            sliding_heading_weight: 8.0,
+            sliding_heading_factor: 1.0,
             sliding_hold_m: 1.0,
             speed_weight: 2.0,
             yaw_rate_weight: 0.2,
@@ -189,7 +188,6 @@ impl MpcConfig {
         for (name, w) in [
             ("mpc.lateral_weight", self.lateral_weight),
             ("mpc.heading_weight", self.heading_weight),
-            ("mpc.sliding_heading_weight", self.sliding_heading_weight),
             ("mpc.speed_weight", self.speed_weight),
             ("mpc.yaw_rate_weight", self.yaw_rate_weight),
             ("mpc.accel_weight", self.accel_weight),
@@ -205,6 +203,7 @@ impl MpcConfig {
         check_range("mpc.wheel_y_m", self.wheel_y_m, 0.0, 5.0)?;
         check_range("mpc.tire_width_m", self.tire_width_m, 0.0, 2.0)?;
         check_range("mpc.row_clearance_m", self.row_clearance_m, 0.0, 1.0)?;
+        check_range("mpc.sliding_heading_factor", self.sliding_heading_factor, 0.0, 1000.0)?;
         check_range("mpc.sliding_hold_m", self.sliding_hold_m, 0.0, 1000.0)?;
         check_range("mpc.speed_min_mps", self.speed_min_mps, -5.0, 5.0)?;
         check_range("mpc.speed_max_mps", self.speed_max_mps, self.speed_min_mps + 1e-3, 5.0)?;
@@ -521,10 +520,11 @@ impl Mpc {
         self.u.fill(0.0);
     }
 
-    /// Weighs the heading error of the next solves by `sliding_heading_weight` (true: a wheel slide
-    /// is being read) or by `heading_weight` (false, the default).
+    /// Weighs the heading error of the next solves by `heading_weight` times `sliding_heading_factor`
+    /// (true: a wheel slide is being read) or by `heading_weight` alone (false, the default).
     pub fn set_sliding(&mut self, sliding: bool) {
-        self.stage.q_psi = if sliding { self.cfg.sliding_heading_weight } else { self.cfg.heading_weight };
+        let factor = if sliding { self.cfg.sliding_heading_factor } else { 1.0 };
+        self.stage.q_psi = factor * self.cfg.heading_weight;
     }
 
     /// Solves for the command that tracks `path` from the robot's place `state` on it at cruise speed
@@ -809,11 +809,11 @@ mod tests {
     fn a_slide_being_read_turns_back_to_the_lane_along_a_flatter_arc_when_opted_in() {
         // The lane moved 0.2 or 0.25 m under the robot as registration caught up with a slide. At
         // the plain heading weight the robot turns back 0.23 rad and its worst tyre goes 12 and 38 mm
-        // past its band; under the opt-in slide weight of 40, 0.16 rad, 8 and 33 mm. By default the
-        // two weights are the same.
+        // past its band; under the opt-in slide factor of 5 (a weight of 40), 0.16 rad, 8 and 33 mm.
+        // By default the factor is 1.
         let defaults = MpcConfig::default();
         assert_eq!(rejoin(&defaults, 0.2, true), rejoin(&defaults, 0.2, false), "opt-in");
-        let cfg = MpcConfig { sliding_heading_weight: 40.0, ..defaults };
+        let cfg = MpcConfig { sliding_heading_factor: 5.0, ..defaults };
         for lateral_m in [0.2, 0.25] {
             let ((plain_excess, plain_turn), (excess, turn)) =
                 (rejoin(&cfg, lateral_m, false), rejoin(&cfg, lateral_m, true));
@@ -868,8 +868,8 @@ mod tests {
         assert!(Mpc::new(cfg).unwrap_err().to_string().contains("mpc.horizon_steps"));
         let cfg = MpcConfig { speed_max_mps: -1.0, ..MpcConfig::default() };
         assert!(Mpc::new(cfg).unwrap_err().to_string().contains("mpc.speed_max_mps"));
-        let cfg = MpcConfig { sliding_heading_weight: f64::NAN, ..MpcConfig::default() };
-        assert!(Mpc::new(cfg).unwrap_err().to_string().contains("mpc.sliding_heading_weight"));
+        let cfg = MpcConfig { sliding_heading_factor: f64::NAN, ..MpcConfig::default() };
+        assert!(Mpc::new(cfg).unwrap_err().to_string().contains("mpc.sliding_heading_factor"));
         let cfg = MpcConfig { sliding_hold_m: -1.0, ..MpcConfig::default() };
         assert!(Mpc::new(cfg).unwrap_err().to_string().contains("mpc.sliding_hold_m"));
     }
