@@ -316,14 +316,6 @@ impl Navigator {
         }
     }
 
-    /// The pose the MPC plans from: while following through a slide the detector found (see
-    /// [`RowDetector::slide_per_m`]), the heading is replaced by the course over the ground, heading +
-    /// atan(slide per metre). The MPC's unicycle moves along its heading; on wet soil the robot moves
-    /// along its course, and a controller told the heading holds the crab angle that cancels the
-    /// slide without ever closing the offset it has built up (issue 6: 20-25 cm off the centre line,
-    /// the rows detected within 1-2 cm). Told the course, it steers until the robot's motion over the
-    /// ground follows the line. Returns the course and the crab angle atan(slide per metre), by which
-    /// the body points off it (the MPC places the tyres by the body).
     /// True while following with a wheel slide read by the detector now or within
     /// `mpc.sliding_hold_m` of driving: the MPC then weighs the heading `mpc.sliding_heading_factor`
     /// times as much (opt-in: 1 by default). Any other mode forgets the slide.
@@ -339,6 +331,14 @@ impl Navigator {
         self.slide_read_at.is_some_and(|p| (odom.x - p.x).hypot(odom.y - p.y) <= hold)
     }
 
+    /// The pose the MPC plans from: while following through a slide the detector found (see
+    /// [`RowDetector::slide_per_m`]), the heading is replaced by the course over the ground, heading +
+    /// atan(slide per metre). The MPC's unicycle moves along its heading; on wet soil the robot moves
+    /// along its course, and a controller told the heading holds the crab angle that cancels the
+    /// slide without ever closing the offset it has built up (issue 6: 20-25 cm off the centre line,
+    /// the rows detected within 1-2 cm). Told the course, it steers until the robot's motion over the
+    /// ground follows the line. Returns the course and the crab angle atan(slide per metre), by which
+    /// the body points off it (the MPC places the tyres by the body).
     fn course(&self, mode: Mode, frenet: Frenet) -> (Frenet, f64) {
         match self.detector.slide_per_m().filter(|k| mode == Mode::Following && k.is_finite()) {
             Some(k) => {
