@@ -53,6 +53,13 @@ fn a_simulated_recording_replays_to_the_same_rows() {
     for f in ["metrics.json", "trajectory.csv", "top_view.png", "errors.png", "detections.jsonl"] {
         assert!(out.join(f).exists(), "{f} missing");
     }
+    // The run drove along the rows: stems passed beside the tyres, none under them.
+    let metrics: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).expect("metrics.json"))
+            .expect("JSON");
+    let clearance = metrics["least_stem_clearance_m"].as_f64().expect("a least stem clearance");
+    assert!(metrics["crop_contacts"] == 0 && clearance > 0.1 && clearance < 0.4, "{metrics}");
+    assert!(String::from_utf8_lossy(&sim.stdout).contains("least stem clearance"));
     let det = croprow(&["detect", mcap.to_str().unwrap(), "--out", rows.to_str().unwrap()]);
     assert!(det.status.success(), "{}", String::from_utf8_lossy(&det.stderr));
 

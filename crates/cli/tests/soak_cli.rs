@@ -16,11 +16,17 @@ fn small_soak_writes_the_report_and_its_exit_code_tells_failures() {
     let v: serde_json::Value = serde_json::from_str(&text).expect("soak.json is JSON");
     assert_eq!(v["runs"].as_u64(), Some(4), "{v}");
     assert!(v["distance_m"].as_f64().is_some_and(|d| d > 4.0 * 10.0), "each run drives a lane: {v}");
-    for key in ["crop_contacts", "unsafe_commands", "panics", "errors"] {
+    for key in ["crop_contacts", "near_misses", "unsafe_commands", "panics", "errors"] {
         assert!(v[key].as_u64().is_some(), "`{key}` missing: {v}");
     }
     let each = v["each"].as_array().expect("each is a list");
     assert_eq!(each.len(), 4, "one line per run: {v}");
+    // Every run drives along the rows, so a stem passes beside a tyre; a near miss is a run under
+    // 5 cm of a stem without a contact.
+    let clearance = |r: &serde_json::Value| r["least_stem_clearance_m"].as_f64().expect("a clearance");
+    let near = each.iter().filter(|r| r["crop_contacts"] == 0 && clearance(r) < 0.05).count();
+    assert_eq!(v["near_misses"].as_u64(), Some(near as u64), "{v}");
+    assert!(each.iter().all(|r| (clearance(r) < 0.0) == (r["crop_contacts"] != 0)), "{v}");
     assert!(each.iter().all(|r| r["end"].as_str().is_some_and(|e| !e.is_empty())), "{v}");
     let failures = v["failures"].as_array().expect("failures is a list");
     for r in each {
@@ -156,11 +162,12 @@ fn a_baseline_is_compared_seed_by_seed_and_a_bad_one_is_refused_before_any_run()
     let dir = std::env::temp_dir().join(format!("croprow-soak-cli-baseline-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).expect("temp dir");
-    // An earlier soak of seeds 5 and 6 in which seed 5 ran over 3 plants and seed 6 ended elsewhere.
+    // An earlier soak of seeds 5 and 6 in which seed 5 ran over 3 plants (with no clearance: a soak
+    // from before session 45) and seed 6 ended elsewhere, 2 cm from a stem.
     let old = dir.join("old.json");
     let earlier = r#"{"each": [
         {"seed": 5, "end": "done", "crop_contacts": 3},
-        {"seed": 6, "end": "stopped: no_rows", "crop_contacts": 0},
+        {"seed": 6, "end": "stopped: no_rows", "crop_contacts": 0, "least_stem_clearance_m": 0.02},
         {"seed": 99, "end": "done", "crop_contacts": 7}]}"#;
     std::fs::write(&old, earlier).expect("baseline written");
     let out = dir.join("now");
@@ -185,6 +192,11 @@ fn a_baseline_is_compared_seed_by_seed_and_a_bad_one_is_refused_before_any_run()
     let ends_changed =
         usize::from(each[0]["end"] != "done") + usize::from(each[1]["end"] != "stopped: no_rows");
     assert_eq!(b["ends_changed"].as_u64(), Some(ends_changed as u64), "{b}");
+    // Near misses count over the seeds with a clearance in both: seed 6 alone.
+    let near_now = each[1]["crop_contacts"] == 0
+        && each[1]["least_stem_clearance_m"].as_f64().expect("a clearance") < 0.05;
+    assert_eq!(b["near_misses"][0].as_u64(), Some(1), "{b}");
+    assert_eq!(b["near_misses"][1].as_u64(), Some(u64::from(near_now)), "{b}");
     let fewer = b["fewer"].as_array().expect("fewer");
     assert_eq!(fewer.len(), usize::from(plants(0) < 3), "{b}");
     let stdout = String::from_utf8_lossy(&run.stdout);

@@ -177,6 +177,9 @@ pub struct Metrics {
     pub following_samples: usize,
     /// Plants run over.
     pub crop_contacts: usize,
+    /// The least clearance from a tyre's side to a stem beside it, m: negative on a contact, `None`
+    /// when no stem passed alongside a tyre (see [`crate::metrics::CropDamage::least_clearance_m`]).
+    pub least_stem_clearance_m: Option<f64>,
     /// Lanes whose row end was cleared.
     pub lanes_completed: u32,
     /// Lanes the mission asked for.
@@ -682,6 +685,7 @@ impl ClosedLoop {
             heading_err_mean_deg: self.heading.mae(),
             following_samples: self.cross.count(),
             crop_contacts: self.world.crop_contacts(),
+            least_stem_clearance_m: self.world.least_stem_clearance_m(),
             lanes_completed: self.lanes_completed,
             lanes_planned: self.lanes_planned,
             rows_covered: rows.iter().filter(|r| **r).count() as u32,

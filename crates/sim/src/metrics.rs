@@ -193,10 +193,15 @@ impl ErrorStats {
 
 /// Counts plants run over: a plant counts once, the first time its stem lies inside any wheel's
 /// contact patch (`tire_width_m × contact_length_m`, lengthened by the distance driven since the last
-/// update so that no stem slips between two updates).
+/// update so that no stem slips between two updates). It also keeps the least clearance between a
+/// tyre's side and a stem beside it: how near the run came to a contact, a margin that moves
+/// smoothly where the count of plants run over jumps from 0 to 1.
 #[derive(Debug, Clone)]
 pub struct CropDamage {
     hit: Vec<bool>,
+    /// Least lateral distance from a tyre's side to a stem alongside its contact patch, m (negative:
+    /// inside it). Infinite until a stem has passed alongside a tyre.
+    least_clearance_m: f64,
     /// Index of each row's first stem in `Field::stems`.
     row_offsets: Vec<usize>,
     count: usize,
@@ -214,7 +219,20 @@ impl CropDamage {
                 o
             })
             .collect();
-        Self { hit: vec![false; field.stems().len()], row_offsets, count: 0, last: None }
+        Self {
+            hit: vec![false; field.stems().len()],
+            least_clearance_m: f64::INFINITY,
+            row_offsets,
+            count: 0,
+            last: None,
+        }
+    }
+
+    /// The least lateral distance from the side of a tyre to a stem alongside its contact patch over
+    /// the run so far, m, in the tyre's frame (negative: the stem was inside the patch, a contact).
+    /// `None` until a stem within a row of a tyre has passed alongside it.
+    pub fn least_clearance_m(&self) -> Option<f64> {
+        self.least_clearance_m.is_finite().then_some(self.least_clearance_m)
     }
 
     /// Plants contacted so far.
@@ -246,7 +264,11 @@ impl CropDamage {
                         break;
                     }
                     let (bx, by) = pose.inverse_transform_point(s.x_m, s.y_m);
-                    if (bx - wx).abs() <= half_len && (by - wy).abs() <= half_w {
+                    if (bx - wx).abs() > half_len {
+                        continue;
+                    }
+                    self.least_clearance_m = self.least_clearance_m.min((by - wy).abs() - half_w);
+                    if (by - wy).abs() <= half_w {
                         let id = self.row_offsets.get(r as usize).map_or(usize::MAX, |o| o + i);
                         if let Some(h) = self.hit.get_mut(id)
                             && !*h
@@ -369,6 +391,47 @@ mod tests {
     #[test]
     fn driving_centred_in_a_lane_damages_nothing() {
         assert_eq!(drive_damage(&straight(), 5.625), 0);
+    }
+
+    /// The least clearance a drive at `y` (heading +x, x from 1 to 15) must report lies between the
+    /// least over the stems every wheel surely passed (x 1.5-14.5) and over any it may have (0.2-15.8).
+    fn clearance_bounds(f: &Field, y: f64) -> (f64, f64) {
+        let least = |from: f64, to: f64| {
+            f.stems()
+                .iter()
+                .filter(|s| s.x_m > from && s.x_m < to)
+                .flat_map(|s| [(s.y_m - (y + 0.762)).abs(), (s.y_m - (y - 0.762)).abs()])
+                .filter(|d| *d < 0.75)
+                .fold(f64::INFINITY, f64::min)
+                - 0.075
+        };
+        (least(0.2, 15.8), least(1.5, 14.5))
+    }
+
+    fn drive_clearance(f: &Field, y: f64) -> Option<f64> {
+        let rc = RobotConfig::default();
+        let mut d = CropDamage::new(f);
+        assert_eq!(d.least_clearance_m(), None, "no stem has passed yet");
+        let mut x = 1.0;
+        while x < 15.0 {
+            d.update(f, &rc, &Pose2::new(x, y, 0.0));
+            x += 0.01;
+        }
+        d.least_clearance_m()
+    }
+
+    #[test]
+    fn the_least_stem_clearance_is_the_nearest_stem_to_a_tyre_side_and_negative_on_a_contact() {
+        let f = straight();
+        // Centred in lane 7: every tyre runs 0.36-0.39 m from the rows beside it, 0.29-0.31 m from
+        // its side, less the stems' scatter. 0.2 m to the left: the left tyres pass row 9 at about 0.09.
+        // On row 9: a contact, so the clearance is negative.
+        for (y, around) in [(5.625, 0.29), (5.825, 0.09), (6.75 - 0.762, -0.075)] {
+            let c = drive_clearance(&f, y).expect("stems passed alongside");
+            let (low, high) = clearance_bounds(&f, y);
+            assert!(low - 1e-9 <= c && c <= high + 1e-9, "y {y}: {c} outside [{low}, {high}]");
+            assert!((c - around).abs() < 0.04, "y {y}: {c} not near {around}");
+        }
     }
 
     #[test]

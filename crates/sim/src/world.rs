@@ -253,6 +253,12 @@ impl World {
         self.damage.count()
     }
 
+    /// The least clearance from a tyre's side to a stem beside it since the start, m (see
+    /// [`CropDamage::least_clearance_m`]).
+    pub fn least_stem_clearance_m(&self) -> Option<f64> {
+        self.damage.least_clearance_m()
+    }
+
     /// The last completed LiDAR revolution (`None` before the first): the scan a [`Step`] returned,
     /// still readable after the step's borrow ended (e.g. to score it against the field first).
     pub fn last_scan(&self) -> Option<ScanView<'_>> {

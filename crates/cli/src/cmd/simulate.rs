@@ -290,6 +290,12 @@ pub fn print_summary(record: &Run, out: &Path, mcap: Option<&Path>) {
         ("settle distance (< 2 cm)", settle),
         ("crop contacts", m.crop_contacts.to_string()),
         (
+            "least stem clearance",
+            m.least_stem_clearance_m.map_or("no stem passed a tyre".to_owned(), |c| {
+                format!("{:.1} cm from a tyre's side", c * 100.0)
+            }),
+        ),
+        (
             "max headland excursion",
             format!("{:.2} m (wheels {:.2} m)", m.max_headland_excursion_m, m.max_wheel_excursion_m),
         ),

@@ -5,7 +5,9 @@
 //! Run `k` uses seed `S + k`. Writes `DIR/soak.json`:
 //! `{runs, seed, distance_m, sim_time_s, wall_time_s, crop_contacts, unsafe_commands, panics, errors,
 //! ends: {"done": n, "stopped: no_rows": n, ...}, failures: [{seed, scenario, what, replay}],
-//! each: [{seed, crop, end, distance_m, crop_contacts, unsafe_commands, faults, replay?}]}`, and for
+//! each: [{seed, crop, end, distance_m, crop_contacts, least_stem_clearance_m, unsafe_commands, faults,
+//! replay?}]}` (and `near_misses`: runs that touched no plant but passed a stem under 5 cm from a
+//! tyre's side), and for
 //! every failing seed `DIR/fail-SEED.toml`, its scenario, so that the `replay` command
 //! (`croprow simulate --scenario DIR/fail-SEED.toml --set ... --out DIR/replay-SEED`) drives it again
 //! with plots and a trajectory; `croprow evaluate --suite soak --runs 1 --seed SEED` re-runs it under the
@@ -38,6 +40,12 @@ use serde::{Deserialize, Serialize};
 /// Most runs one command may ask for.
 const MAX_RUNS: u32 = 1_000_000;
 
+/// A run that touched no plant but passed a stem closer than this to a tyre's side is a near miss,
+/// m: a sixth of the room a tyre has between two rows (0.75 m apart, tyres 0.15 m wide: stems about
+/// 0.3 m from a centred tyre's side). Over the 155 runs of soak seeds 0-1999 with a wheel slide, 13
+/// came this near without a contact and 3 ran over plants (session 45).
+const NEAR_MISS_M: f64 = 0.05;
+
 /// One failing run in `soak.json`.
 #[derive(Debug, Clone, Serialize)]
 struct Failure {
@@ -59,6 +67,9 @@ struct RunLine {
     end: String,
     distance_m: f64,
     crop_contacts: usize,
+    /// The least clearance from a tyre's side to a stem beside it, m (negative: a contact; null: no
+    /// stem passed alongside a tyre).
+    least_stem_clearance_m: Option<f64>,
     unsafe_commands: usize,
     /// Faults injected, `;`-separated (empty for none).
     faults: String,
@@ -77,6 +88,8 @@ struct Report {
     sim_time_s: f64,
     wall_time_s: f64,
     crop_contacts: usize,
+    /// Runs without a contact whose least stem clearance was under [`NEAR_MISS_M`].
+    near_misses: usize,
     unsafe_commands: usize,
     panics: usize,
     errors: usize,
@@ -90,12 +103,15 @@ struct Report {
     baseline: Option<Comparison>,
 }
 
-/// What `--baseline` reads of an earlier `soak.json`: each run's seed, end and contacts.
+/// What `--baseline` reads of an earlier `soak.json`: each run's seed, end and contacts, and its
+/// least stem clearance when it has one (soaks before session 45 do not).
 #[derive(Debug, Clone, Deserialize)]
 struct BaselineRun {
     seed: u64,
     end: String,
     crop_contacts: usize,
+    #[serde(default)]
+    least_stem_clearance_m: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -120,6 +136,9 @@ struct Comparison {
     crop_contacts: [usize; 2],
     runs_touching: [usize; 2],
     done: [usize; 2],
+    /// Near misses (see [`NEAR_MISS_M`]) over the seeds both soaks ran that have a clearance in
+    /// both (none in a baseline from before session 45).
+    near_misses: [usize; 2],
     /// Seeds that ran over fewer plants now, and over more.
     fewer: Vec<SeedChange>,
     more: Vec<SeedChange>,
@@ -144,6 +163,7 @@ fn compare(file: &Path, before: &[BaselineRun], now: &[RunLine]) -> Comparison {
         crop_contacts: [0; 2],
         runs_touching: [0; 2],
         done: [0; 2],
+        near_misses: [0; 2],
         fewer: Vec::new(),
         more: Vec::new(),
         ends_changed: 0,
@@ -158,6 +178,10 @@ fn compare(file: &Path, before: &[BaselineRun], now: &[RunLine]) -> Comparison {
             c.runs_touching[k] += usize::from(plants > 0);
             c.done[k] += usize::from(end == "done");
         }
+        if let (Some(a), Some(b)) = (was.least_stem_clearance_m, run.least_stem_clearance_m) {
+            c.near_misses[0] += usize::from(near_miss(was.crop_contacts, a));
+            c.near_misses[1] += usize::from(near_miss(run.crop_contacts, b));
+        }
         let change = SeedChange { seed: run.seed, before: was.crop_contacts, after: run.crop_contacts };
         match run.crop_contacts.cmp(&was.crop_contacts) {
             std::cmp::Ordering::Less => c.fewer.push(change),
@@ -167,6 +191,11 @@ fn compare(file: &Path, before: &[BaselineRun], now: &[RunLine]) -> Comparison {
         c.ends_changed += usize::from(run.end != was.end);
     }
     c
+}
+
+/// A run that ran over no plant but passed one nearer than [`NEAR_MISS_M`] to a tyre's side.
+fn near_miss(crop_contacts: usize, least_clearance_m: f64) -> bool {
+    crop_contacts == 0 && least_clearance_m < NEAR_MISS_M
 }
 
 /// What one worker made of one run.
@@ -243,6 +272,7 @@ pub fn run(runs: u32, seed: u64, sets: &[String], out: &Path, baseline: Option<&
         sim_time_s: 0.0,
         wall_time_s,
         crop_contacts: 0,
+        near_misses: 0,
         unsafe_commands: 0,
         panics: 0,
         errors: 0,
@@ -260,6 +290,7 @@ pub fn run(runs: u32, seed: u64, sets: &[String], out: &Path, baseline: Option<&
             end: String::new(),
             distance_m: 0.0,
             crop_contacts: 0,
+            least_stem_clearance_m: None,
             unsafe_commands: 0,
             faults: summary.split_once("; faults: ").map_or(String::new(), |(_, f)| f.replace(", ", "; ")),
             replay: None,
@@ -269,6 +300,9 @@ pub fn run(runs: u32, seed: u64, sets: &[String], out: &Path, baseline: Option<&
                 line.end = o.end.clone();
                 (line.distance_m, line.crop_contacts, line.unsafe_commands) =
                     (o.distance_m, o.crop_contacts, o.unsafe_commands);
+                line.least_stem_clearance_m = o.least_stem_clearance_m;
+                report.near_misses +=
+                    usize::from(o.least_stem_clearance_m.is_some_and(|c| near_miss(o.crop_contacts, c)));
                 report.distance_m += o.distance_m;
                 report.sim_time_s += o.sim_time_s;
                 report.crop_contacts += o.crop_contacts;
@@ -383,8 +417,13 @@ fn print_summary(r: &Report, out: &Path) {
         r.runs, r.seed, r.distance_m, r.sim_time_s, r.wall_time_s
     );
     println!(
-        "  crop contacts {}, unsafe commands {}, panics {}, errors {}",
-        r.crop_contacts, r.unsafe_commands, r.panics, r.errors
+        "  crop contacts {}, near misses {} (a stem under {:.0} cm from a tyre), unsafe commands {}, panics {}, errors {}",
+        r.crop_contacts,
+        r.near_misses,
+        NEAR_MISS_M * 100.0,
+        r.unsafe_commands,
+        r.panics,
+        r.errors
     );
     let ends: Vec<String> = r.ends.iter().map(|(k, v)| format!("{k} {v}")).collect();
     println!("  ends: {}", ends.join(", "));
@@ -408,9 +447,10 @@ fn print_comparison(c: &Comparison) {
     let [p0, p1] = c.crop_contacts;
     let [t0, t1] = c.runs_touching;
     let [d0, d1] = c.done;
+    let [n0, n1] = c.near_misses;
     println!(
         "  against {} ({} seeds in common): {p0} -> {p1} plants run over, {t0} -> {t1} runs touching plants, \
-         {d0} -> {d1} done, {} ends changed",
+         {n0} -> {n1} near misses, {d0} -> {d1} done, {} ends changed",
         c.file, c.common_runs, c.ends_changed
     );
     let list = |changes: &[SeedChange]| {

@@ -573,6 +573,9 @@ pub struct Outcome {
     pub sim_time_s: f64,
     /// Plants run over.
     pub crop_contacts: usize,
+    /// The least clearance from a tyre's side to a stem beside it, m (negative: a contact; `None`:
+    /// no stem passed alongside a tyre). See [`crate::metrics::CropDamage::least_clearance_m`].
+    pub least_stem_clearance_m: Option<f64>,
     /// Unsafe commands (see the module docs).
     pub unsafe_commands: usize,
     /// How the run ended: `done`, `stopped: <reason>`, or the mode it timed out in.
@@ -654,6 +657,7 @@ pub fn run_case(case: &Case) -> Result<Outcome, RunError> {
         distance_m: monitor.distance_m(),
         sim_time_s: m.sim_time_s,
         crop_contacts: monitor.crop_contacts(),
+        least_stem_clearance_m: m.least_stem_clearance_m,
         unsafe_commands: monitor.unsafe_commands(),
         end: if never_started { "never acquired".to_owned() } else { end_label(m.final_mode, m.timed_out) },
         lanes_completed: m.lanes_completed,
