@@ -229,7 +229,7 @@ impl CropDamage {
     }
 
     /// The least lateral distance from the side of a tyre to a stem alongside its contact patch over
-    /// the run so far, m, in the tyre's frame (negative: the stem was inside the patch, a contact).
+    /// the run so far, m, measured across the robot (negative: the stem was inside the patch, a contact).
     /// `None` until a stem within a row of a tyre has passed alongside it.
     pub fn least_clearance_m(&self) -> Option<f64> {
         self.least_clearance_m.is_finite().then_some(self.least_clearance_m)
