@@ -32,7 +32,11 @@ fn scans() -> Vec<(Pose2, Vec<Point3>)> {
 fn warm(config: DetectorConfig, scans: &[(Pose2, Vec<Point3>)]) -> RowDetector {
     let mut det = RowDetector::new(config).expect("valid config");
     for (i, (pose, pts)) in scans.iter().enumerate().take(scans.len() - 1) {
-        det.detect(Scan { stamp_s: 0.1 * i as f64, points: pts, twist: None }, *pose, &Mount::default());
+        det.detect(
+            Scan { stamp_s: 0.1 * i as f64, points: pts, twist: None, attitude: None },
+            *pose,
+            &Mount::default(),
+        );
     }
     det
 }
@@ -52,17 +56,26 @@ fn bench(c: &mut Criterion) {
         g.bench_function(format!("{name}/detect"), |b| {
             b.iter(|| {
                 t += 0.1;
-                black_box(det.detect(Scan { stamp_s: t, points: &pts, twist: None }, pose, &mount))
+                black_box(det.detect(
+                    Scan { stamp_s: t, points: &pts, twist: None, attitude: None },
+                    pose,
+                    &mount,
+                ))
             })
         });
         let mut det = base.clone();
         for stage in [Stage::Preprocess, Stage::Cluster, Stage::Fit] {
-            det.run_stage(Stage::Preprocess, Scan { stamp_s: 0.0, points: &pts, twist: None }, pose, &mount);
+            det.run_stage(
+                Stage::Preprocess,
+                Scan { stamp_s: 0.0, points: &pts, twist: None, attitude: None },
+                pose,
+                &mount,
+            );
             g.bench_function(format!("{name}/{stage:?}"), |b| {
                 b.iter(|| {
                     black_box(det.run_stage(
                         stage,
-                        Scan { stamp_s: 0.0, points: &pts, twist: None },
+                        Scan { stamp_s: 0.0, points: &pts, twist: None, attitude: None },
                         pose,
                         &mount,
                     ))
@@ -73,7 +86,7 @@ fn bench(c: &mut Criterion) {
     // The deskew runs inside the preprocessing pass, on the cropped returns of a turning robot.
     let deskew = DetectorConfig { deskew: true, ..DetectorConfig::default() };
     let mut det = warm(deskew, &scans);
-    let turning = Scan { stamp_s: 0.0, points: &pts, twist: Some(Twist2::new(0.5, 0.2)) };
+    let turning = Scan { stamp_s: 0.0, points: &pts, twist: Some(Twist2::new(0.5, 0.2)), attitude: None };
     g.bench_function("deskew/Preprocess", |b| {
         b.iter(|| black_box(det.run_stage(Stage::Preprocess, turning, pose, &mount)))
     });

@@ -55,7 +55,11 @@ fn main() {
         let scans = scans(&field, 42);
         let mut det = RowDetector::new(config.clone()).expect("valid config");
         for (i, (pose, pts)) in scans.iter().enumerate() {
-            let d = det.detect(Scan { stamp_s: 0.1 * i as f64, points: pts, twist: None }, *pose, &mount);
+            let d = det.detect(
+                Scan { stamp_s: 0.1 * i as f64, points: pts, twist: None, attitude: None },
+                *pose,
+                &mount,
+            );
             hash_detection(&mut hash, &d);
         }
         eprintln!("{name}: warm-up hashed");
@@ -70,7 +74,7 @@ fn main() {
         if register {
             pose.x += 0.15;
         }
-        let d = det.detect(Scan { stamp_s: t, points: &pts, twist: None }, pose, &mount);
+        let d = det.detect(Scan { stamp_s: t, points: &pts, twist: None, attitude: None }, pose, &mount);
         hash_detection(&mut hash, &d);
     }
     let per_call_us = start.elapsed().as_secs_f64() * 1e6 / calls as f64;

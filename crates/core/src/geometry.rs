@@ -141,6 +141,26 @@ impl Default for Mount {
     }
 }
 
+/// Roll and pitch of `base_link` against gravity, rad (REP-103: positive roll lifts the left side,
+/// positive pitch tilts the nose down). The robot's yaw is the odometry's.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Attitude {
+    /// Roll about x, rad.
+    pub roll_rad: f64,
+    /// Pitch about y, rad.
+    pub pitch_rad: f64,
+}
+
+impl Attitude {
+    /// Largest roll or pitch believed, rad (29°: no field robot drives there).
+    pub const MAX_RAD: f64 = 0.5;
+
+    /// True when both angles are finite and within [`Attitude::MAX_RAD`].
+    pub fn is_plausible(&self) -> bool {
+        self.roll_rad.abs() <= Self::MAX_RAD && self.pitch_rad.abs() <= Self::MAX_RAD
+    }
+}
+
 impl Mount {
     /// A mount from a translation (m) and a unit quaternion `(x, y, z, w)`, as ROS `/tf_static` gives it.
     pub fn from_translation_quaternion(t: [f64; 3], q_xyzw: [f64; 4]) -> Result<Self, ConfigError> {

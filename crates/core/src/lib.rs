@@ -24,7 +24,7 @@ pub mod odometry;
 pub mod perception;
 
 pub use error::ConfigError;
-pub use geometry::{Mount, Point3, Pose2, Twist2};
+pub use geometry::{Attitude, Mount, Point3, Pose2, Twist2};
 pub use mapping::RowMap;
 pub use navigator::{NavInput, NavOutput, Navigator, NavigatorConfig};
 pub use perception::{Detection, RowEstimate, RowStatus, Scan};

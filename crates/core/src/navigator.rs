@@ -12,6 +12,10 @@
 //! the paths ([`LaneSwitcher::path`]) live in `nav`, which departs from `odom` by the slide integrated
 //! so far (centimetres over a slip patch).
 //!
+//! On uneven ground each scan may carry the robot's roll and pitch ([`Scan::attitude`], from the
+//! accelerometer: [`crate::odometry::AttitudeFilter`]), so that the detector puts a canopy over its
+//! stems (see [`crate::perception`]).
+//!
 //! ```
 //! use croprow_core::navigator::{NavInput, Navigator, NavigatorConfig};
 //! use croprow_core::{Mount, Pose2, Twist2};
@@ -31,7 +35,7 @@ use crate::control::path::Frenet;
 use crate::control::reference::{ReferenceConfig, centre_line};
 use crate::error::{ConfigError, check_range};
 use crate::geometry::{Mount, Pose2, Twist2, wrap_angle};
-use crate::odometry::{Drift, DriftConfig, EkfConfig};
+use crate::odometry::{AttitudeConfig, Drift, DriftConfig, EkfConfig};
 use crate::perception::{Detection, DetectorConfig, RowDetector, RowStatus, Scan};
 
 /// The whole navigation configuration: one section per stage, with the same dotted names in config
@@ -54,6 +58,10 @@ pub struct NavigatorConfig {
     pub input: InputConfig,
     /// The odometry's unsensed drift, learned from the rows and removed (see [`Drift`]).
     pub drift: DriftConfig,
+    /// Roll and pitch from the accelerometer. Like the EKF, not run by the navigator: the simulator
+    /// and the ROS node build their [`crate::odometry::AttitudeFilter`] from it and give its estimate
+    /// with each scan ([`Scan::attitude`]).
+    pub attitude: AttitudeConfig,
 }
 
 /// Checks of the navigator's input (section `input`).
@@ -92,6 +100,7 @@ impl NavigatorConfig {
         self.ekf.validate()?;
         self.input.validate()?;
         self.drift.validate()?;
+        self.attitude.validate()?;
         Ok(())
     }
 }
@@ -504,7 +513,7 @@ mod tests {
                 stamp_s: t,
                 odom: Pose2::default(),
                 odom_twist: Twist2::ZERO,
-                scan: Some(Scan { stamp_s: scan_t, points: &points, twist: None }),
+                scan: Some(Scan { stamp_s: scan_t, points: &points, twist: None, attitude: None }),
                 mount: &mount,
                 mpc_budget: None,
             })

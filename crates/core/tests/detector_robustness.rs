@@ -1,7 +1,7 @@
 //! Bad input never panics: it gives `InvalidInput` (state kept), a documented status, or a `ConfigError`.
 mod support;
 
-use croprow_core::{DetectorConfig, Mount, Point3, Pose2, RowDetector, RowStatus, Scan};
+use croprow_core::{Attitude, DetectorConfig, Mount, Point3, Pose2, RowDetector, RowStatus, Scan};
 use proptest::prelude::*;
 use support::{Field, Lidar};
 
@@ -13,7 +13,11 @@ fn tracking(config: DetectorConfig) -> (RowDetector, Lidar, Field) {
     for i in 0..30 {
         let pose = Pose2::new(0.1 * i as f64, 0.0, 0.0);
         let pts = lidar.scan(&field, &pose, &Mount::default());
-        det.detect(Scan { stamp_s: 0.1 * i as f64, points: &pts, twist: None }, pose, &Mount::default());
+        det.detect(
+            Scan { stamp_s: 0.1 * i as f64, points: &pts, twist: None, attitude: None },
+            pose,
+            &Mount::default(),
+        );
     }
     (det, lidar, field)
 }
@@ -26,21 +30,30 @@ fn step(
     pose: Pose2,
 ) -> croprow_core::Detection {
     let pts = lidar.scan(field, &pose, &Mount::default());
-    det.detect(Scan { stamp_s: t, points: &pts, twist: None }, pose, &Mount::default())
+    det.detect(Scan { stamp_s: t, points: &pts, twist: None, attitude: None }, pose, &Mount::default())
 }
 
 #[test]
 fn empty_and_non_finite_scans_are_invalid_input() {
     let mut det = RowDetector::new(DetectorConfig::default()).unwrap();
     let m = Mount::default();
-    let d = det.detect(Scan { stamp_s: 0.0, points: &[], twist: None }, Pose2::default(), &m);
+    let d = det.detect(Scan { stamp_s: 0.0, points: &[], twist: None, attitude: None }, Pose2::default(), &m);
     assert_eq!(d.status, RowStatus::InvalidInput);
     let junk = [Point3::new(f32::NAN, 1.0, 0.0), Point3::new(f32::INFINITY, 0.0, 0.0)];
-    let d = det.detect(Scan { stamp_s: 0.1, points: &junk, twist: None }, Pose2::default(), &m);
+    let d =
+        det.detect(Scan { stamp_s: 0.1, points: &junk, twist: None, attitude: None }, Pose2::default(), &m);
     assert_eq!(d.status, RowStatus::InvalidInput);
-    let d = det.detect(Scan { stamp_s: f64::NAN, points: &junk, twist: None }, Pose2::default(), &m);
+    let d = det.detect(
+        Scan { stamp_s: f64::NAN, points: &junk, twist: None, attitude: None },
+        Pose2::default(),
+        &m,
+    );
     assert_eq!(d.status, RowStatus::InvalidInput);
-    let d = det.detect(Scan { stamp_s: 0.2, points: &junk, twist: None }, Pose2::new(f64::NAN, 0.0, 0.0), &m);
+    let d = det.detect(
+        Scan { stamp_s: 0.2, points: &junk, twist: None, attitude: None },
+        Pose2::new(f64::NAN, 0.0, 0.0),
+        &m,
+    );
     assert_eq!(d.status, RowStatus::InvalidInput);
 }
 
@@ -53,10 +66,35 @@ fn non_finite_points_among_good_ones_are_skipped() {
         for p in pts.iter_mut().step_by(7) {
             *p = Point3::new(f32::NAN, f32::INFINITY, f32::NEG_INFINITY);
         }
-        let d = det.detect(Scan { stamp_s: 3.0, points: &pts, twist: None }, pose, &Mount::default());
+        let d = det.detect(
+            Scan { stamp_s: 3.0, points: &pts, twist: None, attitude: None },
+            pose,
+            &Mount::default(),
+        );
         assert_eq!(d.status, RowStatus::Tracking);
         assert!(d.left.is_some_and(|r| r.line.iter().all(|v| v.is_finite())));
     }
+}
+
+#[test]
+fn an_absurd_or_non_finite_attitude_refuses_the_scan_and_keeps_the_state() {
+    let (mut det, mut lidar, field) = tracking(DetectorConfig::default());
+    let pose = Pose2::new(3.0, 0.0, 0.0);
+    let pts = lidar.scan(&field, &pose, &Mount::default());
+    for (roll_rad, pitch_rad) in [(f64::NAN, 0.0), (0.0, f64::INFINITY), (0.6, 0.0), (0.0, -0.6)] {
+        let attitude = Some(Attitude { roll_rad, pitch_rad });
+        let d =
+            det.detect(Scan { stamp_s: 3.0, points: &pts, twist: None, attitude }, pose, &Mount::default());
+        assert_eq!(d.status, RowStatus::InvalidInput, "{attitude:?}");
+    }
+    // The same scan, level, is taken: the refusals left the state as it was.
+    let level = Some(Attitude::default());
+    let d = det.detect(
+        Scan { stamp_s: 3.0, points: &pts, twist: None, attitude: level },
+        pose,
+        &Mount::default(),
+    );
+    assert_eq!(d.status, RowStatus::Tracking);
 }
 
 #[test]
@@ -129,7 +167,11 @@ fn a_confirmed_odometry_jump_restarts_the_map() {
         let t = 0.1 * i as f64;
         // The field moves with the origin.
         let pts = lidar.scan(&field, &Pose2::new(t, 0.0, 0.0), &Mount::default());
-        last = Some(det.detect(Scan { stamp_s: t, points: &pts, twist: None }, shift(t), &Mount::default()));
+        last = Some(det.detect(
+            Scan { stamp_s: t, points: &pts, twist: None, attitude: None },
+            shift(t),
+            &Mount::default(),
+        ));
     }
     let d = last.unwrap();
     assert_eq!(d.status, RowStatus::Tracking);
@@ -145,8 +187,11 @@ fn an_absurd_mount_is_invalid_input() {
         Mount { pitch_rad: f64::NAN, ..Mount::default() },
         Mount { roll_rad: 3.0, ..Mount::default() },
     ] {
-        let d =
-            det.detect(Scan { stamp_s: 3.0, points: &pts, twist: None }, Pose2::new(3.0, 0.0, 0.0), &mount);
+        let d = det.detect(
+            Scan { stamp_s: 3.0, points: &pts, twist: None, attitude: None },
+            Pose2::new(3.0, 0.0, 0.0),
+            &mount,
+        );
         assert_eq!(d.status, RowStatus::InvalidInput);
     }
 }
@@ -196,7 +241,7 @@ proptest! {
         let config = if paper { DetectorConfig::paper() } else { DetectorConfig::default() };
         let mut det = RowDetector::new(config).unwrap();
         for (i, pts) in scans.iter().enumerate() {
-            let d = det.detect(Scan { stamp_s: 0.1 * i as f64, points: pts, twist: None }, Pose2::new(0.1 * i as f64, 0.0, 0.0), &Mount::default());
+            let d = det.detect(Scan { stamp_s: 0.1 * i as f64, points: pts, twist: None, attitude: None }, Pose2::new(0.1 * i as f64, 0.0, 0.0), &Mount::default());
             for r in d.left.iter().chain(d.right.iter()) {
                 prop_assert!(r.line.iter().all(|v| v.is_finite()));
                 prop_assert!(r.offset_m.is_finite() && r.heading_rad.is_finite() && r.curvature_per_m.is_finite());

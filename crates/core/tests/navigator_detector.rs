@@ -38,7 +38,7 @@ impl Rig {
     fn cycle(&mut self, field: &Field, i: usize) -> (NavOutput, f64) {
         let t = i as f64 * PERIOD_S;
         let points = self.lidar.scan(field, &self.pose, &self.mount);
-        let scan = Some(Scan { stamp_s: t, points: &points, twist: None });
+        let scan = Some(Scan { stamp_s: t, points: &points, twist: None, attitude: None });
         let input = NavInput {
             stamp_s: t,
             odom: self.pose,

@@ -61,7 +61,7 @@ fn step_runs_the_detector_on_the_scan() {
         stamp_s: 0.0,
         odom: Pose2::default(),
         odom_twist: Twist2::ZERO,
-        scan: Some(Scan { stamp_s: 0.0, points: &points, twist: None }),
+        scan: Some(Scan { stamp_s: 0.0, points: &points, twist: None, attitude: None }),
         mount: &mount,
         mpc_budget: None,
     });

@@ -151,7 +151,7 @@ proptest! {
                 stamp_s: stamp,
                 odom,
                 odom_twist: Twist2::ZERO,
-                scan: Some(Scan { stamp_s: stamp, points: &points, twist: None }),
+                scan: Some(Scan { stamp_s: stamp, points: &points, twist: None, attitude: None }),
                 mount: &mount,
                 mpc_budget: None,
             });

@@ -89,7 +89,7 @@ fn sample_scans(c: &mut Criterion) {
         b.iter(|| {
             let mut detector = RowDetector::new(DetectorConfig::default()).unwrap();
             for (stamp_s, points, pose, mount) in &frames {
-                let scan = croprow_core::Scan { stamp_s: *stamp_s, points, twist: None };
+                let scan = croprow_core::Scan { stamp_s: *stamp_s, points, twist: None, attitude: None };
                 std::hint::black_box(detector.detect(scan, *pose, mount));
             }
         })

@@ -267,7 +267,7 @@ pub struct ScanFrame<'a> {
 impl ScanFrame<'_> {
     /// The scan as the detector takes it.
     pub fn scan(&self) -> Scan<'_> {
-        Scan { stamp_s: self.stamp_s, points: self.points, twist: self.odom_twist }
+        Scan { stamp_s: self.stamp_s, points: self.points, twist: self.odom_twist, attitude: None }
     }
 }
 

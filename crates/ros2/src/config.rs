@@ -18,7 +18,7 @@ use croprow_core::control::mpc::MpcConfig;
 use croprow_core::control::reference::ReferenceConfig;
 use croprow_core::error::{ConfigError, check_range};
 use croprow_core::navigator::InputConfig;
-use croprow_core::odometry::{DriftConfig, EkfConfig};
+use croprow_core::odometry::{AttitudeConfig, DriftConfig, EkfConfig};
 use croprow_core::{DetectorConfig, Mount, NavigatorConfig};
 use croprow_io::overrides;
 use serde::{Deserialize, Serialize};
@@ -155,6 +155,9 @@ pub struct NodeConfig {
     pub input: InputConfig,
     /// The odometry's unsensed drift learned from the rows (off by default).
     pub drift: DriftConfig,
+    /// Roll and pitch from the IMU's accelerometer, used when `node.odometry = "wheel_imu"` (with
+    /// `filtered` odometry no IMU is read, and `base_link` is taken as level).
+    pub attitude: AttitudeConfig,
     /// `base_link -> sensor` used until `/tf_static` gives one for the cloud's frame. Default: the
     /// paper's mount (Sec. IV).
     pub mount: Mount,
@@ -187,6 +190,7 @@ impl NodeConfig {
             ekf: self.ekf.clone(),
             input: self.input.clone(),
             drift: self.drift.clone(),
+            attitude: self.attitude.clone(),
         }
     }
 

@@ -24,7 +24,7 @@ use std::time::Duration;
 
 use croprow_core::control::{Mode, SolveStatus, StopReason};
 use croprow_core::navigator::{InputFault, NavInput, NavOutput};
-use croprow_core::odometry::{Ekf, EkfError};
+use croprow_core::odometry::{AttitudeError, AttitudeFilter, Ekf, EkfError};
 use croprow_core::{ConfigError, Mount, Navigator, Point3, Pose2, Scan, Twist2};
 use croprow_io::cloud::{self, LayoutError};
 use croprow_io::msg::{Imu, MarkerArray, Odometry, Path, PointCloud2, StringMsg, TfMessage, Twist};
@@ -137,6 +137,9 @@ pub enum InputError {
     /// The EKF refused a sample.
     #[error("EKF: {0}")]
     Ekf(#[from] EkfError),
+    /// The attitude filter refused an accelerometer sample.
+    #[error("attitude: {0}")]
+    Attitude(#[from] AttitudeError),
     /// A message for the other odometry source (`node.odometry`).
     #[error("{0} is not used with this node.odometry")]
     WrongSource(&'static str),
@@ -203,6 +206,8 @@ pub struct NodeCore {
     cfg: NodeConfig,
     navigator: Navigator,
     ekf: Option<Ekf>,
+    /// Roll and pitch from the IMU (`wheel_imu` with `attitude.enabled`).
+    attitude: Option<AttitudeFilter>,
     history: History,
     tf: TransformBuffer,
     points: Vec<Point3>,
@@ -235,9 +240,12 @@ impl NodeCore {
             OdometrySource::Filtered => None,
             OdometrySource::WheelImu => Some(Ekf::new(cfg.ekf.clone())?),
         };
+        let reads_imu = cfg.node.odometry == OdometrySource::WheelImu && cfg.attitude.enabled;
+        let attitude = reads_imu.then(|| AttitudeFilter::new(cfg.attitude.clone())).transpose()?;
         Ok(Self {
             navigator: Navigator::new(cfg.navigator())?,
             ekf,
+            attitude,
             history: History::new(cfg.node.max_extrapolation_s, cfg.node.max_odom_gap_s),
             tf: TransformBuffer::new(),
             points: Vec::new(),
@@ -345,7 +353,7 @@ impl NodeCore {
             stamp_s: step_s,
             odom: pose,
             odom_twist: twist,
-            scan: Some(Scan { stamp_s, points: &self.points, twist: None }),
+            scan: Some(Scan { stamp_s, points: &self.points, twist: None, attitude: self.attitude() }),
             mount: &mount,
             mpc_budget: self.budget(),
         };
@@ -402,6 +410,14 @@ impl NodeCore {
             mpc_budget: self.budget(),
         });
         self.finish(nav)
+    }
+
+    /// The robot's roll and pitch from the IMU's accelerometer, once known (`wheel_imu` with
+    /// `attitude.enabled`); each scan is put upright by it. An IMU that reports its acceleration with
+    /// gravity removed gives none (its samples are far from gravity and skipped): `base_link` is then
+    /// taken as level.
+    pub fn attitude(&self) -> Option<croprow_core::Attitude> {
+        self.attitude.as_ref().and_then(AttitudeFilter::attitude)
     }
 
     fn budget(&self) -> Option<Duration> {
@@ -468,13 +484,15 @@ impl NodeCore {
 
     fn imu(&mut self, msg: &Imu) -> Result<(), InputError> {
         let stamp_s = msg.header.stamp.as_seconds();
-        let w = msg.angular_velocity;
-        let w = match self.tf.lookup(&self.cfg.node.base_frame, &msg.header.frame_id) {
-            Ok(iso) => iso.rotation * nalgebra::Vector3::new(w.x, w.y, w.z),
-            Err(_) => nalgebra::Vector3::new(w.x, w.y, w.z),
+        let (w, a) = (msg.angular_velocity, msg.linear_acceleration);
+        let (w, a) = (nalgebra::Vector3::new(w.x, w.y, w.z), nalgebra::Vector3::new(a.x, a.y, a.z));
+        let (w, a) = match self.tf.lookup(&self.cfg.node.base_frame, &msg.header.frame_id) {
+            Ok(iso) => (iso.rotation * w, iso.rotation * a),
+            Err(_) => (w, a),
         };
         let ekf = self.ekf.as_mut().ok_or(InputError::WrongSource("IMU"))?;
         ekf.update_imu(stamp_s, w.z)?;
+        let twist = ekf.twist();
         // The IMU refines the pose between wheel samples but does not feed the watchdog: without
         // wheels the EKF only dead-reckons.
         let pose = ekf.pose();
@@ -484,6 +502,9 @@ impl NodeCore {
                 stamp_s,
                 previous_s: b.previous_s,
             })?;
+        }
+        if let Some(filter) = self.attitude.as_mut() {
+            filter.update(stamp_s, [a.x, a.y, a.z], twist)?;
         }
         Ok(())
     }
@@ -720,6 +741,47 @@ mod tests {
         // Fed stream by stream instead, the gyro samples older than the last wheel sample are refused.
         let mut node = NodeCore::new(cfg).unwrap();
         assert_eq!(node.on_wheel_imu_batch(0.0, &wheel, &[]) + node.on_wheel_imu_batch(0.0, &[], &gyro), 2);
+    }
+
+    #[test]
+    fn the_imu_accelerometer_gives_the_roll_and_pitch_scans_are_put_upright_by() {
+        let mut cfg = NodeConfig::default();
+        cfg.node.odometry = OdometrySource::WheelImu;
+        cfg.attitude.enabled = true;
+        // Rolled 3° to the left, standing still: gravity's share shows on y (REP-145 specific force).
+        let roll = 3f64.to_radians();
+        let imu = |t: f64, ay: f64| Imu {
+            header: Header {
+                stamp: croprow_io::msg::Time::from_seconds(t).unwrap(),
+                frame_id: "base_link".into(),
+            },
+            linear_acceleration: croprow_io::msg::Vector3 { x: 0.0, y: ay, z: 9.81 * roll.cos() },
+            ..Imu::default()
+        };
+        let mut node = NodeCore::new(cfg.clone()).unwrap();
+        node.on_wheel_odometry(0.0, &odom(1.0)).unwrap();
+        assert_eq!(node.attitude(), None);
+        for k in 1..=100 {
+            node.on_imu(&imu(1.0 + 0.01 * k as f64, 9.81 * roll.sin())).unwrap();
+        }
+        let a = node.attitude().expect("an attitude after a second of samples");
+        // Less the deadband (`attitude.deadband_deg`, 0.3°).
+        assert!((a.roll_rad - (roll - 0.3f64.to_radians())).abs() < 1e-3 && a.pitch_rad == 0.0, "{a:?}");
+        // A non-finite acceleration is refused with the stream's error; the estimate stays.
+        let e = node.on_imu(&imu(2.01, f64::NAN)).unwrap_err();
+        assert!(e.to_string().contains("attitude: non-finite specific force"), "{e}");
+        assert_eq!(node.attitude(), Some(a));
+        // Off, or with filtered odometry, there is none.
+        cfg.attitude.enabled = false;
+        let mut node = NodeCore::new(cfg).unwrap();
+        node.on_wheel_odometry(0.0, &odom(1.0)).unwrap();
+        (1..=100).for_each(|k| node.on_imu(&imu(1.0 + 0.01 * k as f64, 9.81 * roll.sin())).unwrap());
+        assert_eq!(node.attitude(), None);
+        let mut filtered = NodeConfig::default();
+        filtered.attitude.enabled = true;
+        let mut node = NodeCore::new(filtered).unwrap();
+        assert!(matches!(node.on_imu(&imu(1.0, 9.81 * roll.sin())), Err(InputError::WrongSource(_))));
+        assert_eq!(node.attitude(), None);
     }
 
     #[test]

@@ -79,7 +79,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             truth.yaw + yaw_err,
         );
         let det_out = det.detect(
-            Scan { stamp_s: 0.1 * k as f64, points: &scan.points, twist: None },
+            Scan { stamp_s: 0.1 * k as f64, points: &scan.points, twist: None, attitude: None },
             odom,
             &s.lidar.mount,
         );

@@ -42,7 +42,7 @@ use croprow_core::control::lane_switch::{Mode, TurnDirection};
 use croprow_core::error::check_range;
 use croprow_core::geometry::wrap_angle;
 use croprow_core::navigator::{NavInput, NavOutput, Navigator, NavigatorConfig};
-use croprow_core::odometry::{Ekf, EkfConfig};
+use croprow_core::odometry::{AttitudeFilter, Ekf, EkfConfig};
 use croprow_core::{ConfigError, Pose2, RowStatus, Scan, Twist2};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
@@ -202,7 +202,8 @@ pub struct Metrics {
     pub final_mode: Mode,
     /// Scans the detector processed.
     pub scans: usize,
-    /// Odometry samples the EKF refused.
+    /// Odometry samples the EKF refused, and accelerometer samples the attitude filter refused (out
+    /// of order).
     pub ekf_rejections: usize,
     /// The run hit `run.max_time_s` before the navigator stopped.
     pub timed_out: bool,
@@ -315,6 +316,8 @@ pub struct ClosedLoop {
     name: String,
     world: World,
     ekf: Option<Ekf>,
+    /// Roll and pitch from the accelerometer (`attitude.enabled`); none when off.
+    attitude: Option<AttitudeFilter>,
     nav: Navigator,
     mount: croprow_core::Mount,
     control_every: u64,
@@ -407,6 +410,11 @@ impl ClosedLoop {
         Ok(Self {
             name: scenario.name.clone(),
             mount: scenario.lidar.mount,
+            attitude: nav_cfg
+                .attitude
+                .enabled
+                .then(|| AttitudeFilter::new(nav_cfg.attitude.clone()))
+                .transpose()?,
             nav: Navigator::new(nav_cfg.clone())?,
             ekf,
             control_every,
@@ -538,6 +546,11 @@ impl ClosedLoop {
                 (ekf.pose(), ekf.twist())
             }
         };
+        if let (Some(filter), Some(imu)) = (self.attitude.as_mut(), step_copy.imu) {
+            let force = [imu.accel_x_m_s2, imu.accel_y_m_s2, imu.accel_z_m_s2];
+            // A sample the odometry-timing fault put out of order is refused, and counted.
+            self.ekf_rejections += usize::from(filter.update(imu.stamp_s, force, odom_twist).is_err());
+        }
         let truth = step_copy.truth.pose;
         self.distance_m += (truth.x - self.last_truth.x).hypot(truth.y - self.last_truth.y);
         self.last_truth = truth;
@@ -547,12 +560,13 @@ impl ClosedLoop {
         let blackout = self.cfg.lidar_blackout_after_m.is_some_and(|d| self.distance_m >= d);
         let scan = completed_scan(&self.world, scan_done, blackout);
         let started = t >= self.cfg.standstill_s - 1e-9;
+        let attitude = self.attitude.as_ref().and_then(AttitudeFilter::attitude);
         if started && (scan.is_some() || self.steps.is_multiple_of(self.control_every)) {
             let input = NavInput {
                 stamp_s: t,
                 odom,
                 odom_twist,
-                scan: scan.map(|s| Scan { stamp_s: s.stamp_s, points: s.points, twist: None }),
+                scan: scan.map(|s| Scan { stamp_s: s.stamp_s, points: s.points, twist: None, attitude }),
                 mount: &self.mount,
                 mpc_budget: None,
             };

@@ -33,7 +33,7 @@ pub struct SensorConfig {
     pub gyro_bias_rad_s: f64,
     /// Standard deviation of each gyro z reading, rad/s. Default 0.003.
     pub gyro_noise_rad_s: f64,
-    /// Constant accelerometer bias on x and y, m/s². Default 0.02.
+    /// Constant accelerometer bias on each axis, m/s². Default 0.02 (0.12° of roll and of pitch).
     pub accel_bias_m_s2: f64,
     /// Standard deviation of each accelerometer reading, m/s². Default 0.05.
     pub accel_noise_m_s2: f64,
@@ -84,16 +84,34 @@ pub struct WheelOdometry {
 }
 
 /// An IMU sample in `base_link` axes (the IMU is assumed aligned with the body).
+///
+/// The accelerometer reads the specific force, as a real one does (REP-145): the body's acceleration
+/// minus gravity, so +9.81 m/s² on z when level and still, and on uneven ground gravity's share on x
+/// and y tells the robot's roll and pitch. The body's vertical acceleration over the relief (under
+/// 0.02 m/s² on the soak's fields at 0.5 m/s) is left out.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct ImuSample {
     /// Measurement time, s.
     pub stamp_s: f64,
     /// Yaw rate about z, rad/s.
     pub gyro_z_rad_s: f64,
-    /// Forward acceleration, m/s² (gravity removed: the robot is planar).
+    /// Specific force along x (forward), m/s².
     pub accel_x_m_s2: f64,
-    /// Leftward acceleration, m/s².
+    /// Specific force along y (left), m/s².
     pub accel_y_m_s2: f64,
+    /// Specific force along z (up), m/s².
+    pub accel_z_m_s2: f64,
+}
+
+/// Standard gravity, m/s².
+const GRAVITY_M_S2: f64 = 9.80665;
+
+/// The specific force in body axes of a body at `roll`, `pitch` (rad) accelerating by `accel`
+/// (m/s², forward and left along the ground).
+fn specific_force(roll_rad: f64, pitch_rad: f64, accel: (f64, f64)) -> [f64; 3] {
+    let body = nalgebra::Rotation3::from_euler_angles(roll_rad, pitch_rad, 0.0);
+    let f = body.inverse() * nalgebra::Vector3::new(accel.0, accel.1, GRAVITY_M_S2);
+    [f.x, f.y, f.z]
 }
 
 /// The sensor models and their schedules.
@@ -107,6 +125,9 @@ pub struct Sensors {
     bias_step: GyroBiasStep,
     bias_stepped: bool,
     rng: ChaCha8Rng,
+    /// The accelerometer's z noise, on its own stream: the other readings' noise is as it was before
+    /// the z axis was modelled.
+    z_rng: ChaCha8Rng,
 }
 
 impl Sensors {
@@ -127,6 +148,11 @@ impl Sensors {
             bias_step: GyroBiasStep::default(),
             bias_stepped: false,
             rng: ChaCha8Rng::seed_from_u64(seed),
+            z_rng: {
+                let mut r = ChaCha8Rng::seed_from_u64(seed);
+                r.set_stream(1);
+                r
+            },
         })
     }
 
@@ -178,24 +204,28 @@ impl Sensors {
         }
         self.next_imu_s += 1.0 / self.config.imu_rate_hz;
         let omega = robot.twist().omega;
-        let (ax, ay) = robot.acceleration();
+        let body = robot.body();
+        let [fx, fy, fz] = specific_force(body.roll_rad, body.pitch_rad, robot.acceleration());
         if self.config.perfect_odometry {
             return Some(ImuSample {
                 stamp_s: now_s,
                 gyro_z_rad_s: omega,
-                accel_x_m_s2: ax,
-                accel_y_m_s2: ay,
+                accel_x_m_s2: fx,
+                accel_y_m_s2: fy,
+                accel_z_m_s2: fz,
             });
         }
         self.bias_stepped |= self.bias_step.enabled && robot.pose().x >= self.bias_step.at_x_m;
         let bias =
             self.config.gyro_bias_rad_s + if self.bias_stepped { self.bias_step.step_rad_s } else { 0.0 };
         let c = self.config.clone();
+        let z_noise: f64 = StandardNormal.sample(&mut self.z_rng);
         Some(ImuSample {
             stamp_s: now_s,
             gyro_z_rad_s: omega + bias + self.noise(c.gyro_noise_rad_s),
-            accel_x_m_s2: ax + c.accel_bias_m_s2 + self.noise(c.accel_noise_m_s2),
-            accel_y_m_s2: ay + c.accel_bias_m_s2 + self.noise(c.accel_noise_m_s2),
+            accel_x_m_s2: fx + c.accel_bias_m_s2 + self.noise(c.accel_noise_m_s2),
+            accel_y_m_s2: fy + c.accel_bias_m_s2 + self.noise(c.accel_noise_m_s2),
+            accel_z_m_s2: fz + c.accel_bias_m_s2 + c.accel_noise_m_s2 * z_noise,
         })
     }
 }
@@ -272,6 +302,22 @@ mod tests {
         assert!(before.clone().count() > 100 && before.clone().all(|(_, e)| (e - 0.005).abs() < 1e-12));
         let after = errors.iter().skip_while(|(x, _)| *x < 2.0);
         assert!(after.clone().count() > 500 && after.clone().all(|(_, e)| (e - 0.025).abs() < 1e-12));
+    }
+
+    #[test]
+    fn the_accelerometer_reads_gravity_square_to_the_ground_the_robot_stands_on() {
+        // Still on a slope, the specific force is gravity's, in body axes: roll and pitch read from
+        // it are the body's (the filter that does so is croprow_core::odometry::AttitudeFilter).
+        let (roll, pitch) = (0.03, -0.02);
+        let [fx, fy, fz] = specific_force(roll, pitch, (0.0, 0.0));
+        assert!((fy.atan2(fz) - roll).abs() < 1e-12 && ((-fx).atan2(fy.hypot(fz)) - pitch).abs() < 1e-12);
+        assert!((fx.hypot(fy).hypot(fz) - GRAVITY_M_S2).abs() < 1e-12);
+        // Level and turning: only the centripetal acceleration shows, on y.
+        assert_eq!(specific_force(0.0, 0.0, (0.0, 0.2)), [0.0, 0.2, GRAVITY_M_S2]);
+        // Noise-free on flat ground, the sensor reads gravity on z.
+        let cfg = SensorConfig { accel_noise_m_s2: 0.0, accel_bias_m_s2: 0.0, ..SensorConfig::default() };
+        let (_, i, _) = run(&cfg, Twist2::new(1.0, 0.0));
+        assert!(i.iter().all(|m| (m.accel_z_m_s2 - GRAVITY_M_S2).abs() < 1e-9), "{:?}", i[0]);
     }
 
     #[test]

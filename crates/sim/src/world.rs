@@ -65,7 +65,7 @@ pub struct ScanView<'a> {
 impl<'a> ScanView<'a> {
     /// The scan as the detector takes it.
     pub fn as_scan(&self) -> Scan<'a> {
-        Scan { stamp_s: self.stamp_s, points: self.points, twist: None }
+        Scan { stamp_s: self.stamp_s, points: self.points, twist: None, attitude: None }
     }
 }
 

@@ -60,7 +60,8 @@ pub struct Setup {
 }
 
 /// Sections of `--set` keys that belong to the navigator.
-pub(crate) const NAV_SECTIONS: [&str; 6] = ["detector", "reference", "mpc", "lane_switch", "ekf", "drift"];
+pub(crate) const NAV_SECTIONS: [&str; 7] =
+    ["detector", "reference", "mpc", "lane_switch", "ekf", "drift", "attitude"];
 
 /// Whether a dotted `--set` key belongs to the navigator (`mpc.horizon_steps`), not to the
 /// scenario or the run.
@@ -352,7 +353,7 @@ impl Recorder {
                 imu.stamp_s,
                 "base_link",
                 [0.0, 0.0, imu.gyro_z_rad_s],
-                [imu.accel_x_m_s2, imu.accel_y_m_s2, 9.81],
+                [imu.accel_x_m_s2, imu.accel_y_m_s2, imu.accel_z_m_s2],
             )?;
         }
         if let Some(scan) = tick.scan {

@@ -12,10 +12,14 @@
 //!
 //! A gyro bias that steps while driving is found by the EKF's bias check (the wheels and the gyro
 //! disagree persistently) and relearnt. What the wheels and the gyro cannot see (a sideways slide) is
-//! estimated from the crop rows by [`Drift`] and removed in the navigator's own frame, `nav`.
+//! estimated from the crop rows by [`Drift`] and removed in the navigator's own frame, `nav`. The
+//! robot's roll and pitch on uneven ground come from the accelerometer ([`AttitudeFilter`]): the
+//! navigator looks at the crop from a level frame.
 
+mod attitude;
 mod drift;
 mod ekf;
 
+pub use attitude::{AttitudeConfig, AttitudeError, AttitudeFilter};
 pub use drift::{Drift, DriftConfig};
 pub use ekf::{Ekf, EkfConfig, EkfError};

@@ -103,6 +103,12 @@ fn atan2_turns(y: f32, x: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::perception::Scan;
+
+    /// A scan at t = 0 of a level robot, for the preprocessing alone.
+    fn level(points: &[Point3]) -> Scan<'_> {
+        Scan { stamp_s: 0.0, points, twist: None, attitude: None }
+    }
 
     fn cfg() -> DetectorConfig {
         DetectorConfig { deskew: true, ..DetectorConfig::default() }
@@ -191,19 +197,19 @@ mod tests {
         let mut pre = Preprocessor::new(points.len(), &config);
         // As stamped: every return placed with the stamp's pose, the rows ahead read turned by about
         // ω·50 ms (1.5 cm at 1 m, 6 cm at 4 m) and the left rows (fired earlier) more than the right.
-        pre.run(0.0, &points, &mount, &config, PlaneRule::Centroid, None);
+        pre.run(&level(&points), &mount, &config, PlaneRule::Centroid, None);
         let n = pre.cropped.len();
         assert!(n > 300, "{n}");
         let skewed = worst_off_row_m(&pre.cropped);
         assert!(skewed > 0.04, "{skewed}");
-        pre.run(0.0, &points, &mount, &config, PlaneRule::Centroid, Deskew::new(Some(twist), &config));
+        pre.run(&level(&points), &mount, &config, PlaneRule::Centroid, Deskew::new(Some(twist), &config));
         assert_eq!(pre.cropped.len(), n);
         // Deskewed: on the rows within the first-order error (ωτ)²/2 · 4 m and the arc's chord, 3 mm.
         let deskewed = worst_off_row_m(&pre.cropped);
         assert!(deskewed < 0.003, "{deskewed}");
         // Driving straight needs no deskew across the rows: they stay in place either way.
         let straight = turning_sweep(Twist2::new(0.5, 0.0));
-        pre.run(0.0, &straight, &mount, &config, PlaneRule::Centroid, None);
+        pre.run(&level(&straight), &mount, &config, PlaneRule::Centroid, None);
         assert!(worst_off_row_m(&pre.cropped) < 1e-4);
     }
 

@@ -4,7 +4,7 @@
 //! ```
 //! use croprow_core::{DetectorConfig, Mount, Pose2, RowDetector, RowStatus, Scan};
 //! let mut detector = RowDetector::new(DetectorConfig::default()).unwrap();
-//! let d = detector.detect(Scan { stamp_s: 0.0, points: &[], twist: None }, Pose2::default(), &Mount::default());
+//! let d = detector.detect(Scan { stamp_s: 0.0, points: &[], twist: None, attitude: None }, Pose2::default(), &Mount::default());
 //! assert_eq!(d.status, RowStatus::InvalidInput); // an empty scan
 //! ```
 
@@ -112,13 +112,15 @@ impl RowDetector {
     /// `scan.stamp_s`, `mount` = `base_link -> sensor`. Never panics.
     ///
     /// Returns [`RowStatus::InvalidInput`] with the state untouched for: a non-finite stamp or pose, a
-    /// stamp not after the previous one, an implausible mount, a scan without a finite point, or an
+    /// stamp not after the previous one, an implausible mount or attitude (beyond ±0.5 rad, or not
+    /// finite), a scan without a finite point, or an
     /// odometry jump faster than `max_speed_mps` (if the next scan confirms the jumped pose, the map is
     /// dropped and detection restarts from it). A gap longer than `max_gap_s` drops the map.
     pub fn detect(&mut self, scan: Scan<'_>, odom: Pose2, mount: &Mount) -> Detection {
         let t = scan.stamp_s;
         let invalid = Detection::empty(t, RowStatus::InvalidInput);
-        if !t.is_finite() || !odom.is_finite() || mount.validate().is_err() {
+        let upright = scan.attitude.is_none_or(|a| a.is_plausible());
+        if !t.is_finite() || !odom.is_finite() || mount.validate().is_err() || !upright {
             return invalid;
         }
         if let Some((last_t, last_pose)) = self.last {
@@ -139,7 +141,7 @@ impl RowDetector {
             }
         }
         let deskew = Deskew::new(scan.twist, &self.config);
-        if self.pre.run(t, scan.points, mount, &self.config, self.plane_rule(), deskew) == 0 {
+        if self.pre.run(&scan, mount, &self.config, self.plane_rule(), deskew) == 0 {
             return invalid;
         }
         self.last = Some((t, odom));
@@ -159,8 +161,7 @@ impl RowDetector {
         match (stage, c.mode) {
             (Stage::Preprocess, _) => {
                 let deskew = Deskew::new(scan.twist, c);
-                self.pre.run(scan.stamp_s, scan.points, mount, c, self.plane_rule(), deskew)
-                    + self.pre.canopy.len()
+                self.pre.run(&scan, mount, c, self.plane_rule(), deskew) + self.pre.canopy.len()
             }
             (Stage::Cluster, DetectorMode::Paper) => {
                 self.paper.cluster_bins(&self.pre.canopy, mount.x_m, &odom, c, &mut self.map);

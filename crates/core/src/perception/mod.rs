@@ -17,7 +17,7 @@
 //! use croprow_core::{DetectorConfig, Mount, Point3, Pose2, RowDetector, Scan};
 //! let mut detector = RowDetector::new(DetectorConfig::default())?;
 //! let points = vec![Point3::new(2.0, 0.3, -1.0); 10];
-//! let d = detector.detect(Scan { stamp_s: 0.0, points: &points, twist: None }, Pose2::default(), &Mount::default());
+//! let d = detector.detect(Scan { stamp_s: 0.0, points: &points, twist: None, attitude: None }, Pose2::default(), &Mount::default());
 //! println!("{}: {:?} {:?}", d.status.as_str(), d.left, d.right);
 //! # Ok::<(), croprow_core::ConfigError>(())
 //! ```
@@ -43,7 +43,7 @@ pub use detector::RowDetector;
 pub use detector::Stage;
 pub use level::{LevelStatus, Tilt};
 
-use crate::geometry::{Point3, Twist2};
+use crate::geometry::{Attitude, Point3, Twist2};
 
 /// One LiDAR revolution, borrowed: points in the sensor frame (m) and the stamp of the scan (s).
 ///
@@ -59,6 +59,13 @@ pub struct Scan<'a> {
     /// (`detector.deskew`). `None`, or a non-finite twist, leaves the scan as stamped. The
     /// [`Navigator`](crate::Navigator) fills it from `NavInput::odom_twist` when it is `None`.
     pub twist: Option<Twist2>,
+    /// Roll and pitch of `base_link` against gravity at the scan (from the accelerometer:
+    /// [`crate::odometry::AttitudeFilter`]). On a slope a plant's canopy leans, in `base_link`, by its
+    /// height times the roll (3 cm for a 1 m canopy at 1.7°); the detector puts each return back over
+    /// the ground it stands on. `None` takes `base_link` as level; beyond ±0.5 rad or not finite, the
+    /// scan is refused (`invalid_input`). The rows are then reported in that upright view of
+    /// `base_link` (the same frame up to the tilt's cosine: 0.05 % at 1.7°).
+    pub attitude: Option<Attitude>,
 }
 
 /// What the detector knows about the rows after a scan. Outcomes are data: the caller decides.

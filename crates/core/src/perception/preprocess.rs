@@ -13,8 +13,11 @@
 //! the scan shows ([`super::level`]), so that a LiDAR off its configured mount still puts the plane
 //! parallel to the ground.
 
-use crate::geometry::{Mount, Point3};
+use nalgebra::Rotation3;
 
+use crate::geometry::{Attitude, Mount};
+
+use super::Scan;
 use super::config::DetectorConfig;
 use super::deskew::Deskew;
 use super::holes::Holes;
@@ -241,18 +244,19 @@ impl Preprocessor {
         }
     }
 
-    /// Crops `points` (stamped `t_s`, s), undoes their motion skew when `deskew` is given, clears them
-    /// of clutter and levels them under the percentile rule, and splits off the canopy. Returns the number of finite points in the scan. Never allocates once the buffers have
-    /// grown to the largest scan seen.
+    /// Crops the scan's points, undoes their motion skew when `deskew` is given, clears them of clutter
+    /// and levels them under the percentile rule, puts them upright by the scan's attitude, and splits
+    /// off the canopy. Returns the number of finite points in the scan. Never allocates once the
+    /// buffers have grown to the largest scan seen.
     pub(crate) fn run(
         &mut self,
-        t_s: f64,
-        points: &[Point3],
+        scan: &Scan<'_>,
         mount: &Mount,
         config: &DetectorConfig,
         rule: PlaneRule,
         deskew: Option<Deskew>,
     ) -> usize {
+        let (t_s, points) = (scan.stamp_s, scan.points);
         self.cropped.clear();
         let f = Frame::new(mount);
         let (r_max2, r_min2) =
@@ -299,6 +303,9 @@ impl Preprocessor {
                 config.clutter_min_share as f32,
             );
             self.level_cropped(t_s, f.t, config);
+        }
+        if let Some(attitude) = scan.attitude {
+            self.upright(&attitude);
         }
         if self.cropped.is_empty() {
             self.canopy.clear();
@@ -352,6 +359,22 @@ impl Preprocessor {
         }
     }
 
+    /// Moves each cropped point to where it stands over the ground as seen from gravity's vertical:
+    /// its `x` and `y` are those of the point turned by the robot's roll and pitch about `base_link`'s
+    /// origin, its height stays the one above the plane the robot stands on. A plant grows along
+    /// gravity, so on a slope its canopy leans, in `base_link`, by its height times the roll; upright,
+    /// the canopy stands over its stems again, while the canopy plane and the levelling keep the
+    /// heights they were made for (the ground in view tilts with the robot).
+    fn upright(&mut self, attitude: &Attitude) {
+        let m = Rotation3::from_euler_angles(attitude.roll_rad, attitude.pitch_rad, 0.0);
+        let r = |i: usize, j: usize| m[(i, j)] as f32;
+        let (rx, ry) = ([r(0, 0), r(0, 1), r(0, 2)], [r(1, 0), r(1, 1), r(1, 2)]);
+        for p in &mut self.cropped {
+            let [x, y, z] = *p;
+            *p = [rx[0] * x + rx[1] * y + rx[2] * z, ry[0] * x + ry[1] * y + ry[2] * z, z];
+        }
+    }
+
     /// The canopy plane (halfway between the 5th and 95th height percentiles, at least `min_height_m`
     /// above the 5th) and the highest canopy return believed ([`ABOVE_TOP_M`] over the 95th).
     fn percentile_levels(&mut self, min_height_m: f32) -> (f32, f32) {
@@ -389,6 +412,12 @@ fn quantile_bin(hist: &[u32], n: u64, pct: u64) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::Point3;
+
+    /// A scan at t = 0 of a level robot, for the preprocessing alone.
+    fn level(points: &[Point3]) -> Scan<'_> {
+        Scan { stamp_s: 0.0, points, twist: None, attitude: None }
+    }
 
     fn sensor_point(mount: &Mount, base: [f64; 3]) -> Point3 {
         let p = mount.isometry().inverse_transform_point(&nalgebra::Point3::new(base[0], base[1], base[2]));
@@ -408,7 +437,7 @@ mod tests {
             Point3::new(f32::NAN, 0.0, 0.0),
         ];
         let mut pre = Preprocessor::new(8, &cfg);
-        let finite = pre.run(0.0, &pts, &mount, &cfg, PlaneRule::Centroid, None);
+        let finite = pre.run(&level(&pts), &mount, &cfg, PlaneRule::Centroid, None);
         assert_eq!(finite, 5);
         assert_eq!(pre.cropped.len(), 2);
         assert!((pre.plane_z_m - 0.25).abs() < 1e-4, "{}", pre.plane_z_m);
@@ -425,6 +454,37 @@ mod tests {
     }
 
     #[test]
+    fn a_rolled_robot_sees_a_canopy_over_its_stems_once_upright() {
+        // The robot stands on ground sloping up to its left by 2°. A plant 1 m tall grows straight up
+        // from the ground 0.5 m to the left: in base_link, whose z is square to the slope, its top
+        // leans uphill by 1·sin 2° = 3.5 cm.
+        let roll: f64 = 2f64.to_radians();
+        let up_in_body =
+            nalgebra::Rotation3::from_euler_angles(roll, 0.0, 0.0).inverse() * nalgebra::Vector3::z();
+        let mount = Mount::default();
+        let cfg = DetectorConfig::default();
+        let mut pts = Vec::new();
+        for i in 0..60 {
+            let x = 2.0 + 0.02 * i as f64;
+            let top = nalgebra::Vector3::new(x, 0.5, 0.0) + up_in_body;
+            pts.push(sensor_point(&mount, [x, 0.0, 0.0]));
+            pts.push(sensor_point(&mount, [top.x, top.y, top.z]));
+        }
+        let canopy_y = |attitude: Option<Attitude>| {
+            let mut pre = Preprocessor::new(128, &cfg);
+            let scan = Scan { stamp_s: 0.0, points: &pts, twist: None, attitude };
+            pre.run(&scan, &mount, &cfg, PlaneRule::Percentile, None);
+            assert_eq!(pre.canopy.len(), 60);
+            pre.canopy.iter().map(|p| p[1] as f64).sum::<f64>() / 60.0
+        };
+        let leaning = canopy_y(None);
+        assert!((leaning - (0.5 + roll.sin())).abs() < 0.001, "{leaning}");
+        let upright = canopy_y(Some(Attitude { roll_rad: roll, pitch_rad: 0.0 }));
+        // Over the stem, 0.5·cos 2° m across the level ground.
+        assert!((upright - 0.5 * roll.cos()).abs() < 0.001, "{upright}");
+    }
+
+    #[test]
     fn percentile_plane_ignores_a_ground_majority() {
         let mount = Mount::default();
         let cfg = DetectorConfig::default();
@@ -432,7 +492,7 @@ mod tests {
         // through; the percentile rule puts the plane near 0.2 m.
         let pts = ground_with_plant_tops(&mount);
         let mut pre = Preprocessor::new(8, &cfg);
-        pre.run(0.0, &pts, &mount, &cfg, PlaneRule::Percentile, None);
+        pre.run(&level(&pts), &mount, &cfg, PlaneRule::Percentile, None);
         assert!((pre.plane_z_m - 0.2).abs() < 0.02, "{}", pre.plane_z_m);
         assert_eq!(pre.canopy.len(), 10);
     }
@@ -447,7 +507,7 @@ mod tests {
         let mut pts = ground_with_plant_tops(&mount);
         pts.push(sensor_point(&mount, [2.5, 0.2, 1.2]));
         let mut pre = Preprocessor::new(8, &cfg);
-        pre.run(0.0, &pts, &mount, &cfg, PlaneRule::Percentile, None);
+        pre.run(&level(&pts), &mount, &cfg, PlaneRule::Percentile, None);
         assert_eq!(pre.canopy.len(), 10);
         assert!(pre.canopy.iter().all(|p| p[2] < 0.3), "{:?}", pre.canopy);
     }
@@ -470,11 +530,11 @@ mod tests {
         let pts: Vec<Point3> = ground_with_plant_tops(&mount).into_iter().chain(dust(&mount, 12)).collect();
         let kept = DetectorConfig { clutter_min_points: 0, ..DetectorConfig::default() };
         let mut pre = Preprocessor::new(8, &kept);
-        pre.run(0.0, &pts, &mount, &kept, PlaneRule::Percentile, None);
+        pre.run(&level(&pts), &mount, &kept, PlaneRule::Percentile, None);
         assert!(pre.plane_z_m > 0.4, "the dust no longer lifts the plane: {}", pre.plane_z_m);
         let cfg = DetectorConfig::default();
         let mut pre = Preprocessor::new(8, &cfg);
-        pre.run(0.0, &pts, &mount, &cfg, PlaneRule::Percentile, None);
+        pre.run(&level(&pts), &mount, &cfg, PlaneRule::Percentile, None);
         assert_eq!(pre.cropped.len(), 100);
         assert!((pre.plane_z_m - 0.2).abs() < 0.02, "{}", pre.plane_z_m);
         assert_eq!(pre.canopy.len(), 10);
@@ -574,7 +634,7 @@ mod tests {
         let pts: Vec<Point3> = ground_with_plant_tops(&mount).into_iter().chain(dust(&mount, 2)).collect();
         let cfg = DetectorConfig::default();
         let mut pre = Preprocessor::new(8, &cfg);
-        pre.run(0.0, &pts, &mount, &cfg, PlaneRule::Percentile, None);
+        pre.run(&level(&pts), &mount, &cfg, PlaneRule::Percentile, None);
         assert_eq!(pre.cropped.len(), 102);
     }
 }

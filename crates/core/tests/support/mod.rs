@@ -329,7 +329,11 @@ pub fn run_with_odometry(
     let mut e = Errors::default();
     for (i, (pose, odom)) in poses.iter().zip(odometry).enumerate() {
         let pts = lidar.scan(field, pose, &mount);
-        let d = det.detect(Scan { stamp_s: i as f64 * 0.1, points: &pts, twist: None }, *odom, &mount);
+        let d = det.detect(
+            Scan { stamp_s: i as f64 * 0.1, points: &pts, twist: None, attitude: None },
+            *odom,
+            &mount,
+        );
         e.detections.push(d);
         if i < skip {
             continue;

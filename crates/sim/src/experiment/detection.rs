@@ -382,7 +382,7 @@ pub fn run_detection_with(
         let to_end_m = if x < end_x { arc_length(field, x, end_x) } else { -arc_length(field, end_x, x) };
         for (detector, st) in detectors.iter_mut().zip(stats.iter_mut()) {
             let d = detector.detect(
-                croprow_core::Scan { stamp_s, points: &points, twist: Some(twist) },
+                croprow_core::Scan { stamp_s, points: &points, twist: Some(twist), attitude: None },
                 odom,
                 &mount,
             );
