@@ -51,9 +51,10 @@ const GRAVITY_M_S2: f64 = 9.80665;
 pub struct AttitudeConfig {
     /// Put each scan upright by the accelerometer's roll and pitch; false takes `base_link` as level
     /// (the scans then carry no attitude). Default false, opt-in: it takes fault-free soak seed 1390
-    /// (5 cm of relief) from 12.7 cm mean off the lane centre to 2.8 cm, but every run on relief, and
-    /// through the accelerometer's transients under a wheel slide many on flat ground, drives
-    /// differently, and its 1000-run soaks are in docs/faults.md, session 46.
+    /// (5 cm of relief) from 12.7 cm mean off the lane centre to 2.8 cm, and the soak's relief runs
+    /// from 22 to 12 under 8 cm of a stem, but its 1000-run soaks ran over 10 plants in 3 runs and 29
+    /// in 7 (the default: 3 in 1 and 2 in 2), most on flat fields, where the accelerometer's
+    /// transients leave the deadband (docs/faults.md, session 46).
     pub enabled: bool,
     /// Time constant of the low-pass on the gravity direction, s. Default 0.5: at 100 Hz the
     /// accelerometer's 0.05 m/s² noise leaves 0.02° on the estimate, and relief whose wavelength is
