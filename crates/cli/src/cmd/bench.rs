@@ -24,8 +24,8 @@ use anyhow::Context;
 use croprow_core::control::mpc::{Mpc, MpcConfig};
 use croprow_core::control::path::Path;
 use croprow_core::navigator::{NavInput, Navigator, NavigatorConfig};
-use croprow_core::odometry::{AttitudeConfig, AttitudeFilter, Ekf};
-use croprow_core::{Attitude, DetectorConfig, Point3, Pose2, RowDetector, Scan, Twist2};
+use croprow_core::odometry::Ekf;
+use croprow_core::{DetectorConfig, Point3, Pose2, RowDetector, Scan, Twist2};
 use croprow_sim::experiment::detection::{self, fuse_odometry};
 use croprow_sim::{Scenario, World};
 use serde::Serialize;
@@ -148,18 +148,16 @@ struct Recorded {
     stamp_s: f64,
     odom: Pose2,
     odom_twist: Twist2,
-    attitude: Option<Attitude>,
     points: Vec<Point3>,
 }
 
 /// Drives the human-like driver over the field, from rest, and keeps every scan with its EKF pose and
-/// twist and the accelerometer's attitude.
+/// twist.
 fn record_scans(scenario: &Scenario) -> anyhow::Result<(Vec<Recorded>, f64)> {
     let mut world = World::new(scenario).context("building the world")?;
     let mut driver = world.driver().context("driver")?;
     let mut ekf = Ekf::new(detection::ekf_config()).context("EKF")?;
     ekf.reset(0.0, world.robot().pose()).context("EKF start")?;
-    let mut gravity = AttitudeFilter::new(AttitudeConfig::default()).context("attitude")?;
     let mut scans = Vec::with_capacity(DETECT_SCANS);
     while scans.len() < DETECT_SCANS {
         let cmd = if scans.len() < DETECT_REST_SCANS {
@@ -169,20 +167,9 @@ fn record_scans(scenario: &Scenario) -> anyhow::Result<(Vec<Recorded>, f64)> {
         };
         let step = world.step(cmd).context("world step")?;
         fuse_odometry(&mut ekf, step.wheel, step.imu).context("EKF")?;
-        if let Some(imu) = step.imu {
-            let force = [imu.accel_x_m_s2, imu.accel_y_m_s2, imu.accel_z_m_s2];
-            gravity.update(imu.stamp_s, force, ekf.twist()).context("attitude")?;
-        }
         if let Some(scan) = step.scan {
             let (odom, odom_twist) = (ekf.pose(), ekf.twist());
-            let attitude = gravity.attitude();
-            scans.push(Recorded {
-                stamp_s: scan.stamp_s,
-                odom,
-                odom_twist,
-                attitude,
-                points: scan.points.to_vec(),
-            });
+            scans.push(Recorded { stamp_s: scan.stamp_s, odom, odom_twist, points: scan.points.to_vec() });
         }
     }
     let points = scans.iter().map(|s| s.points.len()).sum::<usize>() as f64 / scans.len().max(1) as f64;
@@ -190,7 +177,7 @@ fn record_scans(scenario: &Scenario) -> anyhow::Result<(Vec<Recorded>, f64)> {
 }
 
 /// Wall time of each `detect` call over the scan sequence, µs, after the warm-up scans. Each scan carries
-/// its odometry twist and attitude, as the navigator passes them: the detector undoes the motion skew of the returns it
+/// its odometry twist, as the navigator passes it: the detector undoes the motion skew of the returns it
 /// registers, and the slide watch registers a lane found at rest (`register_rest_watch`).
 fn time_detector(
     config: DetectorConfig,
@@ -202,8 +189,8 @@ fn time_detector(
     let mut times = Vec::with_capacity(scans.len());
     for (k, s) in scans.iter().enumerate() {
         let t0 = Instant::now();
-        let scan =
-            Scan { stamp_s: s.stamp_s, points: &s.points, twist: Some(s.odom_twist), attitude: s.attitude };
+        // The default pipeline: no attitude (`attitude.enabled` is opt-in).
+        let scan = Scan { stamp_s: s.stamp_s, points: &s.points, twist: Some(s.odom_twist), attitude: None };
         let d = detector.detect(scan, s.odom, &mount);
         let us = t0.elapsed().as_secs_f64() * 1e6;
         std::hint::black_box(d);
