@@ -57,8 +57,9 @@ pub struct AttitudeConfig {
     /// transients leave the deadband (docs/faults.md, session 46).
     pub enabled: bool,
     /// Time constant of the low-pass on the gravity direction, s. Default 0.5: at 100 Hz the
-    /// accelerometer's 0.05 m/s² noise leaves 0.02° on the estimate, and relief whose wavelength is
-    /// 6 m or more (a period of 12 s at 0.5 m/s) is followed with under 0.3 s of lag.
+    /// accelerometer's 0.05 m/s² noise leaves about 0.03° on the estimate (computed: the low-pass
+    /// keeps a hundredth of a sample's variance), and relief whose wavelength is 6 m or more (a
+    /// period of 12 s at 0.5 m/s) is followed about one time constant late (0.25 m of driving).
     pub time_constant_s: f64,
     /// Largest roll or pitch reported, degrees; a larger estimate is not believed. Default 15.
     pub max_tilt_deg: f64,
