@@ -243,6 +243,15 @@ pub struct DetectorConfig {
     /// at the far end of the view, read as a slide of 0.02-0.06 m/m and then 0.3 as the near rows
     /// returned; a false slide was declared and the robot ran over 19 plants.
     pub shear_near_gap_m: f64,
+    /// Default mode: prior weight drawing the lane's heading towards its prediction (carried by
+    /// odometry) at each scan, in full-weight centroids times m² (a centroid 1 m from the fit's centre
+    /// along x); 0 leaves the heading free. It slows the lane turning towards 1-2 m of crop seen at the
+    /// far end of the view past a gap across every row (soak seed 1051). Default 0 (opt-in): on 269
+    /// soak seeds (66 with such a gap, 23 of the default's near misses, 180 drawn at random) 20 cut
+    /// the runs passing a stem under 8 cm from 29 to 19 and cleaned the three slide contacts, but ran
+    /// over 14 plants in 3 other runs (5 in 3 by default) and finished 6 fewer runs (more `sliding`
+    /// stops); 50: 20 under 8 cm, 9 plants in 4. See docs/faults.md, session 47.
+    pub heading_prior_m2: f64,
     /// Default mode: side of the cubic voxels of the clutter test, m (see `clutter_min_points`).
     /// Default 0.2 (measured on soak seeds 451 and 148, returns more than 0.12 m above the ground): at
     /// 0.1 a young corn canopy lost 12-16 % of its returns (thin leaves crossed by one ring) against 3 %
@@ -412,6 +421,7 @@ impl Default for DetectorConfig {
             shear_window_m: 0.0,
             shear_test_min_per_m: 0.04,
             shear_near_gap_m: 0.2,
+            heading_prior_m2: 0.0,
             clutter_voxel_m: 0.2,
             clutter_min_points: 3,
             clutter_min_share: 0.03,
@@ -516,6 +526,7 @@ impl DetectorConfig {
         check_range("detector.shear_window_m", self.shear_window_m, 0.0, 10.0)?;
         check_range("detector.shear_test_min_per_m", self.shear_test_min_per_m, 0.0, 1.0)?;
         check_range("detector.shear_near_gap_m", self.shear_near_gap_m, 0.0, 10.0)?;
+        check_range("detector.heading_prior_m2", self.heading_prior_m2, 0.0, 1e6)?;
         check_range("detector.clutter_voxel_m", self.clutter_voxel_m, 0.01, 1.0)?;
         check_count("detector.clutter_min_points", self.clutter_min_points, 0, 1000)?;
         check_range("detector.clutter_min_share", self.clutter_min_share, 0.0, 1.0)?;
@@ -564,6 +575,8 @@ mod tests {
         assert!(c.validate().unwrap_err().to_string().contains("detector.level_cell_m"));
         let c = DetectorConfig { planted_spacing_m: 3.0, ..DetectorConfig::default() };
         assert!(c.validate().unwrap_err().to_string().contains("detector.planted_spacing_m"));
+        let c = DetectorConfig { heading_prior_m2: -1.0, ..DetectorConfig::default() };
+        assert!(c.validate().unwrap_err().to_string().contains("detector.heading_prior_m2"));
         let c = DetectorConfig { planted_spacing_m: f64::NAN, ..DetectorConfig::default() };
         assert!(c.validate().unwrap_err().to_string().contains("detector.planted_spacing_m"));
         let c = DetectorConfig { spacing_prior_m: 3.0, ..DetectorConfig::default() };

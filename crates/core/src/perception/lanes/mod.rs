@@ -70,7 +70,8 @@ const CAUCHY_M: f64 = 0.05;
 /// the curvature term is anchored as if by eight centroids 4 m ahead (curvature changes over tens of
 /// metres; a freer term trades heading precision at the robot for nothing: measured on the simulated
 /// Table I runs, two centroids gave 0.26° mean heading error on straight young corn, eight 0.18°, with
-/// curved rows at 0.21°); offset and heading are left free.
+/// curved rows at 0.21°); offset and heading are left free (a heading prior is opt-in:
+/// `DetectorConfig::heading_prior_m2`).
 const PRIOR_SPACING: f64 = 5.0;
 const PRIOR_CURVATURE: f64 = 8.0 * 256.0;
 const PRIOR_FREE: f64 = 1e-3;
@@ -842,7 +843,7 @@ impl Lanes {
             let priors = [
                 (PRIOR_FREE, predicted.o),
                 (PRIOR_SPACING, predicted.s),
-                (PRIOR_FREE, predicted.a),
+                (PRIOR_FREE.max(config.heading_prior_m2), predicted.a),
                 (curvature_weight, b_prior),
             ];
             for (i, (w, v)) in priors.into_iter().enumerate() {
@@ -1642,6 +1643,51 @@ mod tests {
         // declared at every scan while the near view is empty (its comparisons stay pooled).
         let verdicts = drive_towards_a_gap(0.0, 0.1, &slide_test_on());
         assert_slide_found(&verdicts[..=40], 1.4, 0.1, 0.02);
+    }
+
+    /// Drives 6 m along straight rows 0.75 m apart (heading 0 in `odom`, odometry true), 0.1 m per
+    /// scan, through a gap across every row over `odom` x 3.5-5.5 m. The crop's first metre past the
+    /// gap reads 8 cm further left, as the canopy where rows begin does seen side-on from off the lane
+    /// centre (soak seed 1051). Returns the largest heading of the lane, rad, while the robot is in the
+    /// gap.
+    fn heading_in_a_gap(config: &DetectorConfig) -> f64 {
+        let mut lanes = Lanes::new(config);
+        let mut map = CentroidMap::new(config.map_capacity);
+        let mut centroids = Vec::new();
+        let rows: Vec<f64> = (-3..3).map(|j| (j as f64 + 0.5) * 0.75).collect();
+        let mut worst = 0.0f64;
+        for k in 0..60 {
+            let x = 0.1 * k as f64;
+            let pts: Vec<[f32; 3]> = rows_of_points(&rows, 0.0)
+                .into_iter()
+                .filter(|p| !(3.5..5.5).contains(&(x + f64::from(p[0]))))
+                .map(|[px, py, pz]| {
+                    let side_on = (5.5..6.5).contains(&(x + f64::from(px)));
+                    [px, py + if side_on { 0.08 } else { 0.0 }, pz]
+                })
+                .collect();
+            let odom = Pose2::new(x, 0.0, 0.0);
+            let out =
+                step_whole(&mut lanes, &pts, &pts, &odom, 0.1 * k as f64, config, &mut map, &mut centroids);
+            if (3.5..5.5).contains(&x)
+                && let Some(lane) = out.lane
+            {
+                worst = worst.max(lane.a.abs());
+            }
+        }
+        worst
+    }
+
+    #[test]
+    fn a_heading_prior_slows_the_lane_turning_to_the_askew_crop_past_a_gap() {
+        // The free fit turns the lane by 0.024 rad towards the askew crop; the prior, which draws the
+        // heading towards its prediction at each scan, slows that turn (0.017 at 50, 0.012 at 200).
+        let with_prior =
+            |w: f64| heading_in_a_gap(&DetectorConfig { heading_prior_m2: w, ..DetectorConfig::default() });
+        let free = heading_in_a_gap(&DetectorConfig::default());
+        assert!(free > 0.02, "the case no longer provokes a skewed heading: {free}");
+        let (held, firm) = (with_prior(50.0), with_prior(200.0));
+        assert!(held < 0.8 * free && firm < 0.6 * free, "free {free}, prior 50 {held}, prior 200 {firm}");
     }
 
     #[test]
