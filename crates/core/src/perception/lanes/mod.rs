@@ -1591,17 +1591,16 @@ mod tests {
         assert!((k - 0.08).abs() < 1e-6, "{k}");
     }
 
-    /// Drives 6 m along straight rows 0.75 m apart, 0.1 m per scan, with the odometry true, towards a
-    /// gap across every row over `odom` x 3.5-5.5 m: from 2 m to 4 m driven the near part of the view
-    /// is empty, and the rows past the gap read further left by `far_drift_per_m` times the distance
-    /// driven since 2 m (the canopy where a gap ends, seen side-on at the far end of the view: soak
-    /// seed 869); the robot slides `slide_per_m` to the left. Returns the slide test's verdict at each scan.
-    fn drive_towards_a_gap(
-        far_drift_per_m: f64,
+    /// Drives 6 m along straight rows 0.75 m apart (`odom` heading 0, the odometry true), 0.1 m per scan,
+    /// through a gap across every row over `odom` x 3.5-5.5 m, while the robot slides `slide_per_m` to
+    /// the left unseen by the odometry. `shift(x, point_x)` moves a return of the scan taken at `x`
+    /// sideways, m, given the return's `odom` x; `each(x, lanes, output)` sees every scan's result.
+    fn drive_through_a_gap(
         slide_per_m: f64,
+        shift: impl Fn(f64, f64) -> f64,
         config: &DetectorConfig,
-    ) -> Vec<(f64, Option<f64>)> {
-        let mut verdicts = Vec::new();
+        mut each: impl FnMut(f64, &Lanes, &LaneOutput),
+    ) {
         let mut lanes = Lanes::new(config);
         let mut map = CentroidMap::new(config.map_capacity);
         let mut centroids = Vec::new();
@@ -1609,16 +1608,32 @@ mod tests {
             let x = 0.1 * k as f64;
             let y_true = slide_per_m * x;
             let rows: Vec<f64> = (-3..3).map(|j| (j as f64 + 0.5) * 0.75 - y_true).collect();
-            let drift = if (2.0..=4.0).contains(&x) { far_drift_per_m * (x - 2.0) } else { 0.0 };
             let pts: Vec<[f32; 3]> = rows_of_points(&rows, 0.0)
                 .into_iter()
                 .filter(|p| !(3.5..5.5).contains(&(x + f64::from(p[0]))))
-                .map(|[px, py, pz]| [px, py + drift as f32, pz])
+                .map(|[px, py, pz]| [px, py + shift(x, x + f64::from(px)) as f32, pz])
                 .collect();
             let odom = Pose2::new(x, 0.0, 0.0);
-            step_whole(&mut lanes, &pts, &pts, &odom, 0.1 * k as f64, config, &mut map, &mut centroids);
-            verdicts.push((x, lanes.slide_per_m()));
+            let out =
+                step_whole(&mut lanes, &pts, &pts, &odom, 0.1 * k as f64, config, &mut map, &mut centroids);
+            each(x, &lanes, &out);
         }
+    }
+
+    /// [`drive_through_a_gap`] where, from 2 m to 4 m driven, the near part of the view is empty and the
+    /// rows past the gap read further left by `far_drift_per_m` times the distance driven since 2 m
+    /// (the canopy where a gap ends, seen side-on at the far end of the view: soak seed 869). Returns
+    /// the slide test's verdict at each scan.
+    fn drive_towards_a_gap(
+        far_drift_per_m: f64,
+        slide_per_m: f64,
+        config: &DetectorConfig,
+    ) -> Vec<(f64, Option<f64>)> {
+        let drift = |x: f64, _| if (2.0..=4.0).contains(&x) { far_drift_per_m * (x - 2.0) } else { 0.0 };
+        let mut verdicts = Vec::new();
+        drive_through_a_gap(slide_per_m, drift, config, |x, lanes, _| {
+            verdicts.push((x, lanes.slide_per_m()))
+        });
         verdicts
     }
 
@@ -1645,36 +1660,17 @@ mod tests {
         assert_slide_found(&verdicts[..=40], 1.4, 0.1, 0.02);
     }
 
-    /// Drives 6 m along straight rows 0.75 m apart (heading 0 in `odom`, odometry true), 0.1 m per
-    /// scan, through a gap across every row over `odom` x 3.5-5.5 m. The crop's first metre past the
-    /// gap reads 8 cm further left, as the canopy where rows begin does seen side-on from off the lane
-    /// centre (soak seed 1051). Returns the largest heading of the lane, rad, while the robot is in the
-    /// gap.
+    /// [`drive_through_a_gap`] where the crop's first metre past the gap reads 8 cm further left, as
+    /// the canopy where rows begin does seen side-on from off the lane centre (soak seed 1051). Returns
+    /// the largest heading of the lane, rad, while the robot is in the gap.
     fn heading_in_a_gap(config: &DetectorConfig) -> f64 {
-        let mut lanes = Lanes::new(config);
-        let mut map = CentroidMap::new(config.map_capacity);
-        let mut centroids = Vec::new();
-        let rows: Vec<f64> = (-3..3).map(|j| (j as f64 + 0.5) * 0.75).collect();
+        let side_on = |_, point_x: f64| if (5.5..6.5).contains(&point_x) { 0.08 } else { 0.0 };
         let mut worst = 0.0f64;
-        for k in 0..60 {
-            let x = 0.1 * k as f64;
-            let pts: Vec<[f32; 3]> = rows_of_points(&rows, 0.0)
-                .into_iter()
-                .filter(|p| !(3.5..5.5).contains(&(x + f64::from(p[0]))))
-                .map(|[px, py, pz]| {
-                    let side_on = (5.5..6.5).contains(&(x + f64::from(px)));
-                    [px, py + if side_on { 0.08 } else { 0.0 }, pz]
-                })
-                .collect();
-            let odom = Pose2::new(x, 0.0, 0.0);
-            let out =
-                step_whole(&mut lanes, &pts, &pts, &odom, 0.1 * k as f64, config, &mut map, &mut centroids);
-            if (3.5..5.5).contains(&x)
-                && let Some(lane) = out.lane
-            {
+        drive_through_a_gap(0.0, side_on, config, |x, _, out| {
+            if let Some(lane) = out.lane.filter(|_| (3.5..5.5).contains(&x)) {
                 worst = worst.max(lane.a.abs());
             }
-        }
+        });
         worst
     }
 
