@@ -106,6 +106,10 @@ pub struct DetectorConfig {
     /// 1.70 cm following) and a gyro-step turn (soak seed 699); 0.15 dropped too many bins of a grown
     /// soybean canopy (detection 1.54 -> 1.67 cm). See docs/faults.md.
     pub core_fraction: f64,
+    /// Default mode: the same test as `core_fraction`, applied only to the rows beyond the lane's own
+    /// two (the larger of the two fractions applies there). A row the lattice predicts beyond a field's
+    /// edge gathers the outer leaves of the last row; the lane's own rows keep every bin. Default 0.
+    pub outer_core_fraction: f64,
     /// Default mode: length of the along-row bins whose centroids enter the map, m. Default 0.25.
     pub map_bin_m: f64,
     /// Default mode: fewest canopy points for a bin centroid to enter the map. Default 4.
@@ -394,6 +398,7 @@ impl Default for DetectorConfig {
             heading_search_deg: 20.0,
             gate_fraction: 0.3,
             core_fraction: 0.0,
+            outer_core_fraction: 0.0,
             map_bin_m: 0.25,
             map_min_points: 4,
             map_capacity: 4096,
@@ -487,6 +492,7 @@ impl DetectorConfig {
         check_range("detector.gate_fraction", self.gate_fraction, 0.05, 0.5)?;
         // A window as wide as the gate could never settle inside it.
         check_range("detector.core_fraction", self.core_fraction, 0.0, 0.9 * self.gate_fraction)?;
+        check_range("detector.outer_core_fraction", self.outer_core_fraction, 0.0, 0.9 * self.gate_fraction)?;
         check_range("detector.map_bin_m", self.map_bin_m, 0.05, 5.0)?;
         check_count("detector.map_min_points", self.map_min_points, 1, 100_000)?;
         check_count("detector.map_capacity", self.map_capacity, 16, 1_000_000)?;
@@ -569,6 +575,8 @@ mod tests {
         assert!(c.validate().unwrap_err().to_string().contains("detector.max_depth_m"));
         let c = DetectorConfig { core_fraction: 0.3, ..DetectorConfig::default() };
         assert!(c.validate().unwrap_err().to_string().contains("detector.core_fraction"));
+        let c = DetectorConfig { outer_core_fraction: f64::NAN, ..DetectorConfig::default() };
+        assert!(c.validate().unwrap_err().to_string().contains("detector.outer_core_fraction"));
         let c = DetectorConfig { spacing_max_m: 0.2, ..DetectorConfig::default() };
         assert!(c.validate().unwrap_err().to_string().contains("detector.spacing_max_m"));
         let c = DetectorConfig { range_m: 100.0, level_cell_m: 0.5, ..DetectorConfig::default() };

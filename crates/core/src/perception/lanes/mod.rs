@@ -542,8 +542,8 @@ impl Lanes {
     /// gate), and the visible (any) points near the lane.
     fn measure(&mut self, canopy: &[[f32; 3]], cropped: &[[f32; 3]], lane: &Lane, config: &DetectorConfig) {
         self.bins.iter_mut().for_each(|b| *b = Bin::default());
-        // The lateral profiles serve only the opt-in bin test (`core_fraction` > 0): skip them otherwise.
-        let profiles = config.core_fraction > 0.0;
+        // The lateral profiles serve only the opt-in bin test (a core fraction > 0): skip them otherwise.
+        let profiles = config.core_fraction > 0.0 || config.outer_core_fraction > 0.0;
         if profiles {
             self.cells.iter_mut().for_each(|c| *c = Cell::default());
         }
@@ -692,15 +692,19 @@ impl Lanes {
     ) -> usize {
         self.current.clear();
         self.own_rows_fresh = 0;
-        let (gate, core) = (config.gate_fraction * lane.s, config.core_fraction * lane.s);
+        let gate = config.gate_fraction * lane.s;
+        let own_core = config.core_fraction * lane.s;
+        let outer_core = config.core_fraction.max(config.outer_core_fraction) * lane.s;
         let crests = lane.crests as i32;
         for (i, b) in self.bins.iter().enumerate() {
             let in_hole = self.in_hole.get(i).copied().unwrap_or(false);
+            let j = (i / self.x_bins) as i32 + J_MIN;
+            let own = (-crests..crests).contains(&j);
+            let core = if own { own_core } else { outer_core };
             if b.n as usize >= config.map_min_points && !in_hole && self.peaks_inside(i, gate, core) {
                 let n = b.n as f64;
                 self.current.push([b.sx / b.w, b.sy / b.w, n.min(FULL_WEIGHT_POINTS) / FULL_WEIGHT_POINTS]);
-                let j = (i / self.x_bins) as i32 + J_MIN;
-                self.own_rows_fresh += usize::from((-crests..crests).contains(&j));
+                self.own_rows_fresh += usize::from(own);
             }
         }
         let keyframe = self.last_key.is_none_or(|k| {
@@ -1426,6 +1430,59 @@ mod tests {
     fn no_core_window_keeps_every_bin() {
         let cfg = DetectorConfig { core_fraction: 0.0, ..DetectorConfig::default() };
         assert_eq!(first_left_centroids(&row_and_clump(6, 40), &cfg).len(), 1);
+    }
+
+    /// Drives 6 m, 0.1 m per scan, down a field's last lane: straight rows 0.75 m apart with a broad
+    /// canopy (returns up to 0.3 m either side of each row, 0.4 m high at the row and lower outwards),
+    /// the lane centre at `odom` y = 0, and the field's last row on the left (y = 0.375 m), whose
+    /// outer leaves spread `outer_leaves_m` from it with nothing beyond. Returns the last lane.
+    fn drive_down_a_field_edge(outer_leaves_m: f64, config: &DetectorConfig) -> Lane {
+        let mut canopy = Vec::new();
+        for i in 0..250 {
+            let x = 0.05 * i as f64;
+            for row in [-1.875, -1.125, -0.375, 0.375] {
+                let outer = if row > 0.0 { outer_leaves_m } else { 0.3 };
+                let mut dy = -0.3;
+                while dy <= outer + 1e-9 {
+                    canopy.push([x, row + dy, 0.4 - 0.5 * dy.abs().min(0.6)]);
+                    dy += 0.03;
+                }
+            }
+        }
+        let mut lanes = Lanes::new(config);
+        let mut map = CentroidMap::new(config.map_capacity);
+        let mut centroids = Vec::new();
+        let mut last = None;
+        for k in 0..60 {
+            let x = 0.1 * k as f64;
+            let pts: Vec<[f32; 3]> = canopy
+                .iter()
+                .filter(|p| (1.5..4.5).contains(&(p[0] - x)))
+                .map(|p| [(p[0] - x) as f32, p[1] as f32, p[2] as f32])
+                .collect();
+            let odom = Pose2::new(x, 0.0, 0.0);
+            let out =
+                step_whole(&mut lanes, &pts, &pts, &odom, 0.1 * k as f64, config, &mut map, &mut centroids);
+            last = out.lane.or(last);
+        }
+        last.expect("the lane is found")
+    }
+
+    #[test]
+    fn the_outer_leaves_of_a_fields_last_row_do_not_squeeze_the_spacing() {
+        // Leaves spreading 0.6 m outwards from the last row reach into the gate of the row the lattice
+        // predicts beyond it (1.125 m ± 0.225 m): taken for that row, they shrink the spacing to 0.68 m
+        // and pull the lane 0.13 m off centre. The bin test on the rows beyond the lane's own leaves them
+        // out, and the lane reads as it does where the leaves stay within the row's gate (soak seeds 618
+        // and 1972, grown soybean, the field's last lane: 0.71 m rows read 0.64 m).
+        let squeezed = drive_down_a_field_edge(0.6, &DetectorConfig::default());
+        assert!(squeezed.s < 0.7 && squeezed.o < -0.1, "the case no longer provokes a squeeze: {squeezed:?}");
+        let within_gate = drive_down_a_field_edge(0.3, &DetectorConfig::default());
+        assert!((within_gate.s - 0.75).abs() < 0.02 && within_gate.o.abs() < 0.02, "{within_gate:?}");
+        let cfg = DetectorConfig { outer_core_fraction: 0.1, ..DetectorConfig::default() };
+        let tested = drive_down_a_field_edge(0.6, &cfg);
+        let agree = (tested.s - within_gate.s).abs() < 0.005 && (tested.o - within_gate.o).abs() < 0.005;
+        assert!(agree, "{tested:?} against {within_gate:?}");
     }
 
     /// Drives 6 m along straight rows 0.75 m apart (lane centre at `odom` y = 0), 0.1 m per scan,
