@@ -107,32 +107,22 @@ fn config_file_sections_apply_and_bad_values_name_the_field() {
     std::fs::write(&input, recording()).unwrap();
     // A topic that is not in the file proves [replay] is read.
     std::fs::write(&config, "[detector]\nmode = \"paper\"\n[replay]\ncloud_topic = \"/points\"\n").unwrap();
-    let o = Command::new(env!("CARGO_BIN_EXE_croprow"))
-        .args([
+    let detect = || {
+        let args = [
             "detect",
             input.to_str().unwrap(),
             "--out",
             out.to_str().unwrap(),
             "--config",
             config.to_str().unwrap(),
-        ])
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&o.stderr);
-    assert!(!o.status.success() && stderr.contains("`/points` is not in the recording"), "{stderr}");
+        ];
+        let o = Command::new(env!("CARGO_BIN_EXE_croprow")).args(args).output().unwrap();
+        (o.status.success(), String::from_utf8_lossy(&o.stderr).into_owned())
+    };
+    let (ok, stderr) = detect();
+    assert!(!ok && stderr.contains("`/points` is not in the recording"), "{stderr}");
 
     std::fs::write(&config, "[detector]\nrange_m = -3.0\n").unwrap();
-    let o = Command::new(env!("CARGO_BIN_EXE_croprow"))
-        .args([
-            "detect",
-            input.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--config",
-            config.to_str().unwrap(),
-        ])
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&o.stderr);
-    assert!(!o.status.success() && stderr.contains("detector.range_m"), "{stderr}");
+    let (ok, stderr) = detect();
+    assert!(!ok && stderr.contains("detector.range_m"), "{stderr}");
 }
