@@ -248,10 +248,10 @@ pub struct LaneSwitchConfig {
     /// lanes lagged the watch by 15 cm and a tyre took 2 plants. Default 0.08: over Table I's 200 m
     /// runs, fault-free, the lag passed it only with the watch's slide under 0.03 m/m (it is a random
     /// walk over a long lane), and the stop costs 27 runs done of the 2000-run soak for 3 plants
-    /// (docs/faults.md, session 42). At 0.045 the soak's remaining slow slides stop before the crop
-    /// (13, 1106: 1 plant in 1 run over the 2000 seeds, against 5 in 3), but 44 runs fewer are done,
-    /// 15 fault-free runs stop against 2, and a 2 cm/s wet patch is no longer driven through
-    /// (session 49). 0 turns the stop off.
+    /// (docs/faults.md, session 42). At 0.045 two of the soak's three remaining slides stop before
+    /// the crop (13, 1106: 1 plant in 1 run over the 2000 seeds, against 5 in 3), but 44 runs fewer
+    /// are done, 15 fault-free runs stop against 2, and a 2 cm/s wet patch is no longer driven
+    /// through (session 49). 0 turns the stop off.
     pub max_slide_lag_m: f64,
     /// Tightest turn while following rows, 1/m: the navigator holds the command's yaw rate within
     /// this times the forward speed the MPC plans (its first step's, before the acceleration limit),
