@@ -21,7 +21,7 @@
 //! use croprow_core::{Mount, Pose2, Twist2};
 //! let mut nav = Navigator::new(NavigatorConfig::default()).unwrap();
 //! let mount = Mount::default();
-//! let out = nav.step(NavInput { stamp_s: 0.0, odom: Pose2::default(), odom_twist: Twist2::ZERO, scan: None, mount: &mount, mpc_budget: None });
+//! let out = nav.step(NavInput { stamp_s: 0.0, odom: Pose2::default(), odom_twist: Twist2::ZERO, scan: None, mount: &mount, mpc_budget: None, wheel_slip: None });
 //! assert_eq!(out.cmd, Twist2::ZERO); // no rows yet: wait
 //! ```
 
@@ -122,6 +122,10 @@ pub struct NavInput<'a> {
     pub mount: &'a Mount,
     /// Wall-time budget of the MPC solve (`None`: iteration cap only, deterministic).
     pub mpc_budget: Option<Duration>,
+    /// The wheel slip ratio the odometry witnessed ([`crate::odometry::Ekf::wheel_slip`]); `None`
+    /// when unknown (no read, or odometry from elsewhere). Wheels seen slipping make the lag stop
+    /// stricter (`lane_switch.slipping_slide_lag_m`).
+    pub wheel_slip: Option<f64>,
 }
 
 /// Why a step's input was refused. The navigator's state is kept and the command is zero.
@@ -272,7 +276,8 @@ impl Navigator {
             // The detector's mapped row centroids (in `nav`) tell the lane switcher where each row ends.
             self.switcher.observe_canopy(&pose, &d, self.detector.centroids());
         }
-        self.advance(input.stamp_s, pose, detection, input.mpc_budget)
+        let wheel_slip = input.wheel_slip.filter(|s| s.is_finite());
+        self.advance(input.stamp_s, pose, detection, input.mpc_budget, wheel_slip)
     }
 
     /// One control step with a detection made elsewhere (a recorded one, or a test's): the same as
@@ -286,12 +291,13 @@ impl Navigator {
         mpc_budget: Option<Duration>,
     ) -> NavOutput {
         let mount = Mount::default();
-        let input = NavInput { stamp_s, odom, odom_twist, scan: None, mount: &mount, mpc_budget };
+        let input =
+            NavInput { stamp_s, odom, odom_twist, scan: None, mount: &mount, mpc_budget, wheel_slip: None };
         if let Some(fault) = self.check(&input) {
             return self.refuse(stamp_s, fault);
         }
         let pose = self.drift.correct(stamp_s, odom);
-        self.advance(stamp_s, pose, detection, mpc_budget)
+        self.advance(stamp_s, pose, detection, mpc_budget, None)
     }
 
     /// Feeds the drift estimator the centre line of a detection the robot follows: both rows tracked,
@@ -389,6 +395,7 @@ impl Navigator {
         odom: Pose2,
         detection: Option<Detection>,
         budget: Option<Duration>,
+        wheel_slip: Option<f64>,
     ) -> NavOutput {
         // The MPC limits rates per model step; a controller running faster than that must limit them
         // per elapsed time. Capped at one model step so that a pause does not release a jump.
@@ -402,9 +409,12 @@ impl Navigator {
         }
         // A drift of `odom` that the detector measures past the limit, or one the lanes lag too far:
         // the map lags it (see `LaneSwitchConfig::max_slide_per_m` and `max_slide_lag_m`), so the
-        // robot stops rather than follow the lag.
-        let max_slide = self.cfg.lane_switch.max_slide_per_m;
-        let max_lag = self.cfg.lane_switch.max_slide_lag_m;
+        // robot stops rather than follow the lag. Slipping wheels make the lag limit stricter.
+        let ls = &self.cfg.lane_switch;
+        let max_slide = ls.max_slide_per_m;
+        let slipping = ls.slipping_slide_lag_m > 0.0 && wheel_slip.is_some_and(|s| s >= ls.slipping_min_slip);
+        let max_lag =
+            if slipping { ls.slipping_slide_lag_m.min(ls.max_slide_lag_m) } else { ls.max_slide_lag_m };
         let lagging = |(k, lag): (f64, f64)| max_lag > 0.0 && k.abs() >= 0.5 * max_slide && lag >= max_lag;
         if guidance.mode == Mode::Following
             && max_slide > 0.0
@@ -516,6 +526,7 @@ mod tests {
                 scan: Some(Scan { stamp_s: scan_t, points: &points, twist: None, attitude: None }),
                 mount: &mount,
                 mpc_budget: None,
+                wheel_slip: None,
             })
         };
         let mut nav = Navigator::new(NavigatorConfig::default()).unwrap();

@@ -46,6 +46,7 @@ impl Rig {
             scan,
             mount: &self.mount,
             mpc_budget: None,
+            wheel_slip: None,
         };
         let out = self.nav.step(input);
         assert!(out.cmd.is_finite());

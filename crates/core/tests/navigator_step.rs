@@ -64,6 +64,7 @@ fn step_runs_the_detector_on_the_scan() {
         scan: Some(Scan { stamp_s: 0.0, points: &points, twist: None, attitude: None }),
         mount: &mount,
         mpc_budget: None,
+        wheel_slip: None,
     });
     // A scan without a finite point: the detector refuses it, the robot waits.
     assert_eq!(out.detection.map(|d| d.status), Some(RowStatus::InvalidInput));

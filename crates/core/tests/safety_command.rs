@@ -154,6 +154,7 @@ proptest! {
                 scan: Some(Scan { stamp_s: stamp, points: &points, twist: None, attitude: None }),
                 mount: &mount,
                 mpc_budget: None,
+                wheel_slip: None,
             });
             let elapsed = last_accepted.map(|t0: f64| (stamp - t0).min(cfg.mpc.step_s));
             check(&cfg.mpc, &out, prev, elapsed)?;

@@ -356,6 +356,7 @@ impl NodeCore {
             scan: Some(Scan { stamp_s, points: &self.points, twist: None, attitude: self.attitude() }),
             mount: &mount,
             mpc_budget: self.budget(),
+            wheel_slip: self.wheel_slip(),
         };
         let nav = self.navigator.step(input);
         let rows = nav
@@ -378,6 +379,7 @@ impl NodeCore {
                 scan: None,
                 mount: &mount,
                 mpc_budget: self.budget(),
+                wheel_slip: self.wheel_slip(),
             });
             out = self.finish(NavOutput { detection: nav.detection, ..now });
         }
@@ -408,6 +410,7 @@ impl NodeCore {
             scan: None,
             mount: &self.cfg.mount,
             mpc_budget: self.budget(),
+            wheel_slip: self.wheel_slip(),
         });
         self.finish(nav)
     }
@@ -418,6 +421,11 @@ impl NodeCore {
     /// taken as level.
     pub fn attitude(&self) -> Option<croprow_core::Attitude> {
         self.attitude.as_ref().and_then(AttitudeFilter::attitude)
+    }
+
+    /// The slip the EKF's witness reads (wheel and IMU odometry only).
+    fn wheel_slip(&self) -> Option<f64> {
+        self.ekf.as_ref().and_then(Ekf::wheel_slip)
     }
 
     fn budget(&self) -> Option<Duration> {

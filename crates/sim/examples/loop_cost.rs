@@ -54,6 +54,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     scan: Some(scan.as_scan()),
                     mount: &mount,
                     mpc_budget: None,
+                    wheel_slip: None,
                 });
                 cmd = out.cmd;
                 t_nav += cpu_ns() - t0;

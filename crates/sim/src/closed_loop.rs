@@ -569,6 +569,7 @@ impl ClosedLoop {
                 scan: scan.map(|s| Scan { stamp_s: s.stamp_s, points: s.points, twist: None, attitude }),
                 mount: &self.mount,
                 mpc_budget: None,
+                wheel_slip: self.ekf.as_ref().and_then(Ekf::wheel_slip),
             };
             nav = Some(self.nav.step(input));
         }

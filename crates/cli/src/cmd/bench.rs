@@ -231,6 +231,7 @@ fn closed_loop(scenario: &Scenario) -> anyhow::Result<Loop> {
                 scan: Some(scan.as_scan()),
                 mount: &mount,
                 mpc_budget: None,
+                wheel_slip: None,
             });
             cmd = out.cmd;
         }

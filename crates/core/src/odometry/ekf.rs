@@ -42,6 +42,7 @@ use nalgebra::{SMatrix, SVector};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
+use super::slip::{SlipWitness, SlipWitnessConfig};
 use crate::error::{ConfigError, check_range};
 use crate::geometry::{Pose2, Twist2, wrap_angle};
 
@@ -137,6 +138,8 @@ pub struct EkfConfig {
     /// wheels of 0.007 rad/s noise, over 1 s); the rest is margin for an idling engine's vibration.
     /// With the threshold of 4 a step over 0.008 rad/s is found in one block.
     pub bias_check_rest_std_radps: f64,
+    /// The wheel-slip witness (see [`SlipWitness`]): the gyro's turn against the wheels'.
+    pub slip: SlipWitnessConfig,
 }
 
 impl Default for EkfConfig {
@@ -159,6 +162,7 @@ impl Default for EkfConfig {
             bias_check_threshold: 4.0,
             bias_check_rest_s: 1.0,
             bias_check_rest_std_radps: 0.002,
+            slip: SlipWitnessConfig::default(),
         }
     }
 }
@@ -183,7 +187,7 @@ impl EkfConfig {
         check_range("ekf.bias_check_threshold", self.bias_check_threshold, 0.0, 100.0)?;
         check_range("ekf.bias_check_rest_s", self.bias_check_rest_s, 0.1, 60.0)?;
         check_range("ekf.bias_check_rest_std_radps", self.bias_check_rest_std_radps, 1e-6, 1.0)?;
-        Ok(())
+        self.slip.validate()
     }
 }
 
@@ -221,6 +225,7 @@ pub struct Ekf {
     p: Mat6,
     stamp_s: Option<f64>,
     check: BiasCheck,
+    slip: SlipWitness,
 }
 
 /// The bias check's running state (see the module docs).
@@ -286,6 +291,7 @@ impl Ekf {
         cfg.validate()?;
         Ok(Self {
             p: Self::initial_covariance(&cfg),
+            slip: SlipWitness::new(cfg.slip.clone()),
             cfg,
             x: Vec6::zeros(),
             stamp_s: None,
@@ -314,6 +320,12 @@ impl Ekf {
         self.p[(B, B)] = bias_var;
         self.stamp_s = Some(stamp_s);
         Ok(())
+    }
+
+    /// The wheel slip ratio the gyro last witnessed while the robot steered, held for
+    /// `ekf.slip.hold_m` of driving (see [`SlipWitness`]); `None` when there is no such read.
+    pub fn wheel_slip(&self) -> Option<f64> {
+        self.slip.slip()
     }
 
     /// The pose of `base_link` in `odom`.
@@ -427,6 +439,11 @@ impl Ekf {
         self.predict_to(stamp_s)?;
         self.correct(V, None, v, var[0], &[X, Y]);
         self.correct(W, None, omega, var[1], &[X, Y]);
+        if let Some((_, gyro_z)) =
+            self.check.gyro.filter(|(t, _)| (stamp_s - t).abs() <= BIAS_CHECK_GYRO_AGE_S)
+        {
+            self.slip.add(stamp_s, v, omega, gyro_z);
+        }
         self.check_bias(stamp_s, v, omega);
         Ok(())
     }
@@ -634,6 +651,32 @@ mod tests {
             worst_heading[1] = worst_heading[1].max(wrap_angle(dead.yaw - truth.yaw).abs());
         }
         (truth, ekf, dead, worst_heading)
+    }
+
+    /// The slip the filter's witness reads after 6 s of steering (a 0.1 rad/s sine of period 3 s at
+    /// 0.5 m/s) on wheels that slip by `slip`, with the simulated sensors' noise and a gyro bias.
+    fn witnessed_slip(slip: f64) -> Option<f64> {
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let wheel_w = Normal::new(0.0, 0.007).unwrap();
+        let gyro = Normal::new(0.0, 0.003).unwrap();
+        let mut ekf = Ekf::new(EkfConfig::default()).unwrap();
+        for i in 0..600 {
+            let t = i as f64 * 0.01;
+            let wheels = 0.1 * (t * std::f64::consts::TAU / 3.0).sin();
+            ekf.update_imu(t, (1.0 - slip) * wheels + 0.01 + gyro.sample(&mut rng)).unwrap();
+            if i % 2 == 0 {
+                ekf.update_wheel(t + 0.001, 0.5, wheels + wheel_w.sample(&mut rng)).unwrap();
+            }
+        }
+        ekf.wheel_slip()
+    }
+
+    #[test]
+    fn the_slip_witness_reads_wet_soil_from_the_gyro_turning_less_than_the_wheels() {
+        let wet = witnessed_slip(0.3).expect("a steering robot is read");
+        assert!((wet - 0.3).abs() < 0.05, "wet {wet}");
+        let dry = witnessed_slip(0.03).expect("a steering robot is read");
+        assert!((dry - 0.03).abs() < 0.05, "dry {dry}");
     }
 
     #[test]

@@ -19,7 +19,9 @@
 mod attitude;
 mod drift;
 mod ekf;
+mod slip;
 
 pub use attitude::{AttitudeConfig, AttitudeError, AttitudeFilter};
 pub use drift::{Drift, DriftConfig};
 pub use ekf::{Ekf, EkfConfig, EkfError};
+pub use slip::{SlipWitness, SlipWitnessConfig};

@@ -1815,6 +1815,22 @@ mod tests {
     }
 
     #[test]
+    fn a_slipping_lag_limit_out_of_range_is_refused() {
+        assert_range_checked(
+            "lane_switch.slipping_slide_lag_m",
+            |c, v| c.slipping_slide_lag_m = v,
+            &[-0.01, 11.0, f64::NAN],
+            0.0,
+        );
+        assert_range_checked(
+            "lane_switch.slipping_min_slip",
+            |c, v| c.slipping_min_slip = v,
+            &[-0.1, 1.5, f64::INFINITY],
+            0.3,
+        );
+    }
+
+    #[test]
     fn a_row_turn_limit_out_of_range_is_refused() {
         assert_range_checked(
             "lane_switch.max_row_turn_rad",
