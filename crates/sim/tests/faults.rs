@@ -239,7 +239,7 @@ fn a_wet_patch_with_slip_and_drift_is_tracked_with_a_lag_or_stopped_once_the_whe
     assert_tracked(&drive_with(&s, nav), 6.0, 13.0);
     // By default the EKF's slip witness reads the patch's 30 % slip, and the lanes lagging the slide
     // watch by 4.5 cm (`lane_switch.slipping_slide_lag_m`) stop the robot inside the patch (x 6-14
-    // m), `sliding`, before the lag grows: measured 10.5 m into the lane, 5.6 cm off at most
+    // m), `sliding`, before the lag grows: measured at x 11.5 m, 5.6 cm off at most
     // (session 50). It waits for a person.
     let o = drive(&s);
     assert_safe(&o);

@@ -291,7 +291,7 @@ impl Ekf {
         cfg.validate()?;
         Ok(Self {
             p: Self::initial_covariance(&cfg),
-            slip: SlipWitness::new(cfg.slip.clone()),
+            slip: SlipWitness::new(cfg.slip.clone())?,
             cfg,
             x: Vec6::zeros(),
             stamp_s: None,

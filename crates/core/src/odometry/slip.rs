@@ -84,9 +84,10 @@ pub struct SlipWitness {
 }
 
 impl SlipWitness {
-    /// A witness with no read. `cfg` must be valid ([`SlipWitnessConfig::validate`]).
-    pub fn new(cfg: SlipWitnessConfig) -> Self {
-        Self { cfg, ..Self::default() }
+    /// A witness with no read; an invalid `cfg` is refused, naming the field.
+    pub fn new(cfg: SlipWitnessConfig) -> Result<Self, ConfigError> {
+        cfg.validate()?;
+        Ok(Self { cfg, ..Self::default() })
     }
 
     /// Adds one pair of samples at `stamp_s`: the wheels' forward speed `v` (m/s) and yaw rate
@@ -161,18 +162,18 @@ mod tests {
 
     #[test]
     fn reads_the_slip_ratio_of_a_steering_robot_whatever_the_gyro_bias() {
-        let mut w = SlipWitness::new(SlipWitnessConfig::default());
+        let mut w = SlipWitness::new(SlipWitnessConfig::default()).unwrap();
         drive(&mut w, 0.3, 0.02, 0.0, 4.0);
         let s = w.slip().expect("a steering robot is read");
         assert!((s - 0.3).abs() < 0.02, "read {s}");
-        let mut dry = SlipWitness::new(SlipWitnessConfig::default());
+        let mut dry = SlipWitness::new(SlipWitnessConfig::default()).unwrap();
         drive(&mut dry, 0.03, -0.01, 0.0, 4.0);
         assert!((dry.slip().unwrap() - 0.03).abs() < 0.02);
     }
 
     #[test]
     fn a_robot_driving_straight_gives_no_read_and_a_read_is_forgotten_after_the_hold() {
-        let mut w = SlipWitness::new(SlipWitnessConfig::default());
+        let mut w = SlipWitness::new(SlipWitnessConfig::default()).unwrap();
         for i in 0..500 {
             let t = i as f64 * 0.02;
             w.add(t, 0.5, 0.001, 0.3);
@@ -188,15 +189,21 @@ mod tests {
     }
 
     #[test]
+    fn an_absurd_window_is_refused_by_name() {
+        let err = SlipWitness::new(SlipWitnessConfig { window_s: f64::NAN, ..SlipWitnessConfig::default() });
+        assert!(err.unwrap_err().to_string().contains("ekf.slip.window_s"));
+    }
+
+    #[test]
     fn stamps_that_go_back_and_slow_driving_are_not_read() {
-        let mut w = SlipWitness::new(SlipWitnessConfig::default());
+        let mut w = SlipWitness::new(SlipWitnessConfig::default()).unwrap();
         drive(&mut w, 0.3, 0.0, 0.0, 4.0);
         let before = w.slip();
         // Samples from the past are skipped: the read stays as it was.
         w.add(1.0, 0.5, 0.4, -0.4);
         w.add(f64::NAN, 0.5, 0.4, -0.4);
         assert_eq!(w.slip(), before);
-        let mut slow = SlipWitness::new(SlipWitnessConfig::default());
+        let mut slow = SlipWitness::new(SlipWitnessConfig::default()).unwrap();
         for i in 0..200 {
             let t = i as f64 * 0.02;
             slow.add(t, 0.1, 0.1 * (t * 2.0).sin(), 0.0);

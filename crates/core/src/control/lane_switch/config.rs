@@ -262,7 +262,7 @@ pub struct LaneSwitchConfig {
     /// limit everywhere, two of the three stopped before the crop, but 15 fault-free runs stopped
     /// too (session 49); asked only where the wheels slip, the same two stop (13, 1106: 1 plant in 1
     /// run over the 2000 seeds against 5 in 3), 7 runs fewer are done, no fault-free run stops more,
-    /// and a 2 cm/s wet patch (`fault-slip-patch`) stops 4.5 m in (session 50). At or over
+    /// and a 2 cm/s wet patch (`fault-slip-patch`) stops 5.5 m in (session 50). At or over
     /// `max_slide_lag_m` it changes nothing; 0 turns it off.
     pub slipping_slide_lag_m: f64,
     /// Least slip ratio the odometry's witness must read for `slipping_slide_lag_m`. Default 0.2:
