@@ -54,7 +54,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     scan: Some(scan.as_scan()),
                     mount: &mount,
                     mpc_budget: None,
-                    wheel_slip: None,
+                    wheel_slip: ekf.wheel_slip(),
                 });
                 cmd = out.cmd;
                 t_nav += cpu_ns() - t0;

@@ -231,7 +231,7 @@ fn closed_loop(scenario: &Scenario) -> anyhow::Result<Loop> {
                 scan: Some(scan.as_scan()),
                 mount: &mount,
                 mpc_budget: None,
-                wheel_slip: None,
+                wheel_slip: ekf.wheel_slip(),
             });
             cmd = out.cmd;
         }

@@ -124,18 +124,12 @@ impl SlipWitness {
     /// The time since the previous sample, clamped (`None` for the first sample or a stamp that does
     /// not increase).
     fn step(&mut self, stamp_s: f64) -> Option<f64> {
-        if !stamp_s.is_finite() {
+        if !stamp_s.is_finite() || self.last_s.is_some_and(|t| stamp_s <= t) {
             return None;
         }
-        let last = self.last_s.replace(stamp_s);
-        match last {
-            Some(t) if stamp_s > t => Some((stamp_s - t).min(MAX_SAMPLE_S)),
-            Some(t) => {
-                self.last_s = Some(t);
-                None
-            }
-            None => None,
-        }
+        let dt = self.last_s.map(|t| (stamp_s - t).min(MAX_SAMPLE_S));
+        self.last_s = Some(stamp_s);
+        dt
     }
 
     /// The slip ratio last read (1 minus the body's turn over the wheels'), while held; `None` before
